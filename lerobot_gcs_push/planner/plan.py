@@ -1,0 +1,129 @@
+"""A plan: the mode sequence, the finger and box paths, and its time parameterisation into commands."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from lerobot_gcs_push.planner.graph import NORMALS, ModeGraph
+from lerobot_gcs_push.scene import Scene
+
+# Segment kinds, in the order a push visits them.
+FREE, APPROACH, PUSH, RETREAT = "free", "approach", "push", "retreat"
+
+
+@dataclass(frozen=True)
+class Speeds:
+    """Maximum finger speed per segment kind (m/s).
+
+    The PID finger lags its command by about v * box_damping / kp metres while pushing (1 s of motion at
+    kp = 100 against the box's 100 N*s/m), and that lag drains into the box when the finger stops. Slow
+    pushes keep the final box error small; free motion can be fast because nothing is in contact.
+    """
+
+    free: float = 1.0
+    approach: float = 0.25
+    push: float = 0.4
+    retreat: float = 0.5
+
+    def of(self, kind: str) -> float:
+        return getattr(self, kind)
+
+    def __post_init__(self) -> None:
+        for k, v in asdict(self).items():
+            if not v > 0:
+                raise ValueError(f"Speeds.{k} must be positive, got {v}")
+
+
+@dataclass
+class Plan:
+    method: str
+    cost: float  # finger path length (m)
+    lower_bound: float
+    solve_time_s: float
+    modes: list[str]
+    finger_waypoints: np.ndarray  # (K+1, 2)
+    box_waypoints: np.ndarray  # (K+1, 2): box position when the finger is at each waypoint
+    segment_kinds: list[str]  # (K,)
+    goal: np.ndarray
+    candidates: int = 1  # paths whose restriction was solved
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def box_final(self) -> np.ndarray:
+        return self.box_waypoints[-1]
+
+    @property
+    def num_pushes(self) -> int:
+        return sum(k == PUSH for k in self.segment_kinds)
+
+    def path_length(self) -> float:
+        return float(np.sum(np.linalg.norm(np.diff(self.finger_waypoints, axis=0), axis=1)))
+
+    def duration(self, speeds: Speeds = Speeds()) -> float:
+        lengths = np.linalg.norm(np.diff(self.finger_waypoints, axis=0), axis=1)
+        return float(sum(l / speeds.of(k) for l, k in zip(lengths, self.segment_kinds)))
+
+    def commands(self, fps: float, speeds: Speeds = Speeds()) -> np.ndarray:
+        """Finger position commands at t = 1/fps, 2/fps, ... until the end of the path (last = final)."""
+        wp = self.finger_waypoints
+        if len(wp) < 2:
+            return wp[-1:].copy()
+        lengths = np.linalg.norm(np.diff(wp, axis=0), axis=1)
+        durations = np.array([l / speeds.of(k) for l, k in zip(lengths, self.segment_kinds)])
+        t_knots = np.concatenate([[0.0], np.cumsum(durations)])
+        total = t_knots[-1]
+        n = max(1, int(np.ceil(total * fps - 1e-9)))
+        t = np.minimum(np.arange(1, n + 1) / fps, total)
+        return np.stack([np.interp(t, t_knots, wp[:, 0]), np.interp(t, t_knots, wp[:, 1])], axis=1)
+
+    def to_json(self) -> dict:
+        return {
+            "method": self.method,
+            "cost": self.cost,
+            "lower_bound": self.lower_bound,
+            "solve_time_s": self.solve_time_s,
+            "modes": self.modes,
+            "num_pushes": self.num_pushes,
+            "finger_waypoints": self.finger_waypoints.tolist(),
+            "box_waypoints": self.box_waypoints.tolist(),
+            "segment_kinds": self.segment_kinds,
+            "box_final": self.box_final.tolist(),
+            "goal": self.goal.tolist(),
+            "candidates": self.candidates,
+            **self.extra,
+        }
+
+
+def trace(scene: Scene, graph: ModeGraph, vertices, points: dict[int, np.ndarray],
+          box0: np.ndarray, finger0: np.ndarray):
+    """Finger and box waypoints and segment kinds along a solved path through the mode graph."""
+    d, da = scene.contact_distance, scene.approach_distance
+    finger, box = [np.array(finger0, float)], [np.array(box0, float)]
+    kinds: list[str] = []
+    modes: list[str] = []
+
+    def go(f, b, kind):
+        finger.append(np.asarray(f, float))
+        box.append(np.asarray(b, float))
+        kinds.append(kind)
+
+    for v in vertices:
+        vert = graph.vertices[v]
+        if vert.kind == "free":
+            x = points[v]
+            modes.append(f"free:{vert.face}")
+            go(x[4:6], box[-1], FREE)
+        elif vert.kind == "push":
+            x = points[v]
+            a, c, n = x[0:2], x[2:4], NORMALS[vert.face]
+            modes.append(f"push:{vert.face}")
+            go(a - d * n, a, APPROACH)
+            go(c - d * n, c, PUSH)
+            go(c - da * n, c, RETREAT)
+    fw, bw = np.array(finger), np.array(box)
+    # Drop zero-length segments (a free segment that starts where the previous one ended).
+    keep = [0] + [i + 1 for i in range(len(kinds)) if np.linalg.norm(fw[i + 1] - fw[i]) > 1e-9]
+    kinds = [kinds[i - 1] for i in keep[1:]]
+    return modes, fw[keep], bw[keep], kinds

@@ -1,0 +1,205 @@
+"""The scene: one source of truth for dimensions, physics, camera, goal and disturbances.
+
+Every other module (planner, sim, env, dataset, evaluation) reads these numbers from a `Scene`; none
+repeats them as literals. Defaults follow the paper's original system: a 1 m cube of 5 kg on damped
+prismatic joints (the quasistatic model: a pushed box moves, an unpushed box stops), a 0.3 m sphere
+finger under a PID inverse-dynamics controller, a 0.01 s plant step, and a 500 s timeout.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Iterator
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Disturbances:
+    """The paper's force-disturbance protocol (section IV-A)."""
+
+    probability_per_tick: float = 0.005  # chance of a new disturbance at each tick
+    tick_s: float = 0.01
+    max_count: int = 3
+    force_range_n: tuple[float, float] = (50.0, 300.0)
+    duration_ticks: int = 5
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Top-down RGB camera; the view spans the finger's whole commandable region."""
+
+    width: int = 96
+    height: int = 96
+    height_m: float = 20.0  # above the ground; orthographic-like with a narrow field of view
+    box_rgba: tuple[float, float, float, float] = (0.85, 0.1, 0.1, 1.0)
+    finger_rgba: tuple[float, float, float, float] = (0.05, 0.05, 0.05, 1.0)
+    goal_rgba: tuple[float, float, float, float] = (0.1, 0.75, 0.2, 1.0)
+    ground_rgba: tuple[float, float, float, float] = (0.93, 0.93, 0.93, 1.0)
+
+
+@dataclass(frozen=True)
+class Scene:
+    # Box: a cube that slides on x/y prismatic joints and cannot rotate.
+    box_size: float = 1.0
+    box_mass: float = 5.0
+    box_damping: float = 100.0  # N*s/m on each joint: the quasistatic "ground friction"
+    # Finger: a sphere on actuated x/y prismatic joints at the box's mid-height.
+    finger_radius: float = 0.3
+    finger_mass: float = 1.0
+    finger_box_friction: float = 0.1
+    kp: float = 100.0
+    ki: float = 1.0
+    kd: float = 10.0
+    time_step: float = 0.01
+    # Task.
+    goal: tuple[float, float] = (0.0, 0.0)
+    success_threshold: float = 0.1
+    # Initial-condition distribution (paper III-E) and the finger's commandable region.
+    box_init_half_width: float = 4.5
+    finger_init_half_width: float = 4.7
+    finger_margin: float = 0.4  # beyond box half-size + finger diameter, so any sampled box can be pushed from any face
+    # Planner geometry: the buffer that keeps the finger clear of the box while it moves around it,
+    # and the perpendicular approach/retreat through which every push starts and ends.
+    transition_buffer: float = 0.2
+    camera: Camera = field(default_factory=Camera)
+    disturbances: Disturbances = field(default_factory=Disturbances)
+
+    def __post_init__(self) -> None:
+        for name in ("box_size", "box_mass", "box_damping", "finger_radius", "finger_mass", "time_step",
+                     "success_threshold", "box_init_half_width", "finger_init_half_width"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"Scene.{name} must be positive, got {getattr(self, name)!r}")
+        if len(self.goal) != 2 or not all(math.isfinite(g) for g in self.goal):
+            raise ValueError(f"Scene.goal must be two finite numbers, got {self.goal!r}")
+        if np.max(np.abs(self.goal)) > self.box_limit:
+            raise ValueError(f"Scene.goal {self.goal} lies outside the box's region |x|,|y| <= {self.box_limit}")
+
+    # Derived quantities: computed here once so that no module re-derives them differently.
+    @property
+    def box_half(self) -> float:
+        return self.box_size / 2
+
+    @property
+    def contact_distance(self) -> float:
+        """Centre-to-centre distance along a face normal when finger and box touch."""
+        return self.box_half + self.finger_radius
+
+    @property
+    def approach_distance(self) -> float:
+        """Centre-to-centre distance of the approach point from which a push starts."""
+        return self.contact_distance + self.transition_buffer
+
+    @property
+    def box_limit(self) -> float:
+        """Box centres stay within [-box_limit, box_limit]^2 (initial states, goals, pushes)."""
+        return self.box_init_half_width
+
+    @property
+    def finger_limit(self) -> float:
+        """Finger commands are clipped to [-finger_limit, finger_limit]^2."""
+        return self.box_limit + self.box_half + 2 * self.finger_radius + self.finger_margin
+
+    @property
+    def view_half_width(self) -> float:
+        """Half the side of the square the camera sees: the commandable region plus the finger."""
+        return self.finger_limit + self.finger_radius
+
+    @property
+    def goal_array(self) -> np.ndarray:
+        return np.asarray(self.goal, dtype=float)
+
+    def with_goal(self, goal) -> "Scene":
+        return dataclasses.replace(self, goal=(float(goal[0]), float(goal[1])))
+
+    # Geometry shared by the planner, the env's input checks and the tests.
+    def finger_box_gap(self, box, finger) -> float:
+        """Signed distance between the finger sphere and the box (negative when they overlap)."""
+        d = np.abs(np.asarray(finger, float) - np.asarray(box, float)) - self.box_half
+        outside = np.linalg.norm(np.maximum(d, 0.0))
+        inside = min(max(d[0], d[1]), 0.0)
+        return float(outside + inside - self.finger_radius)
+
+    def validate_state(self, box, finger, *, what: str = "initial condition") -> tuple[np.ndarray, np.ndarray]:
+        """Return (box, finger) as arrays, or raise a ValueError that names the violation."""
+        box = _vector2(box, f"{what}: box")
+        finger = _vector2(finger, f"{what}: finger")
+        if np.max(np.abs(box)) > self.box_limit + 1e-9:
+            raise ValueError(f"{what}: box {box.tolist()} lies outside the box workspace "
+                             f"|x|,|y| <= {self.box_limit}")
+        if np.max(np.abs(finger)) > self.finger_limit + 1e-9:
+            raise ValueError(f"{what}: finger {finger.tolist()} lies outside the finger workspace "
+                             f"|x|,|y| <= {self.finger_limit}")
+        gap = self.finger_box_gap(box, finger)
+        if gap < 0:
+            raise ValueError(f"{what}: finger {finger.tolist()} overlaps the box {box.tolist()} "
+                             f"(penetration {-gap:.3f} m)")
+        return box, finger
+
+    def box_goal_distance(self, box) -> float:
+        return float(np.linalg.norm(np.asarray(box, float) - self.goal_array))
+
+
+def _vector2(value, what: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=float)
+    if arr.shape != (2,):
+        raise ValueError(f"{what} must be a pair [x, y], got {value!r}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{what} must be finite, got {arr.tolist()}")
+    return arr
+
+
+@dataclass(frozen=True)
+class InitialCondition:
+    box: tuple[float, float]
+    finger: tuple[float, float]
+
+    def to_json(self) -> dict:
+        return {"box": list(self.box), "finger": list(self.finger)}
+
+
+def sample_initial_conditions(
+    scene: Scene,
+    n: int,
+    seed: int = 0,
+    sampler: str = "sobol",
+    collides: Callable[[np.ndarray, np.ndarray], bool] | None = None,
+) -> list[InitialCondition]:
+    """The first `n` collision-free initial conditions of a seeded stream.
+
+    `sobol` (default) is a scrambled Sobol sequence over (box x, box y, finger x, finger y): it covers the
+    corners the paper's uniform samples left sparse (its Figs. 4 and 6). `uniform` reproduces the paper.
+    `collides(box, finger)` defaults to the exact sphere-box distance; the env passes Drake's query.
+    The i-th condition depends only on the seed and i, so a prefix of a longer list is the shorter list.
+    """
+    if n < 0:
+        raise ValueError(f"number of initial conditions must be >= 0, got {n}")
+    if collides is None:
+        collides = lambda b, f: scene.finger_box_gap(b, f) < 0  # noqa: E731
+    out: list[InitialCondition] = []
+    for point in _unit_points(sampler, seed):
+        box = (2 * point[:2] - 1) * scene.box_init_half_width
+        finger = (2 * point[2:] - 1) * scene.finger_init_half_width
+        if collides(box, finger):
+            continue
+        out.append(InitialCondition(tuple(map(float, box)), tuple(map(float, finger))))
+        if len(out) == n:
+            break
+    return out
+
+
+def _unit_points(sampler: str, seed: int) -> Iterator[np.ndarray]:
+    if sampler == "uniform":
+        rng = np.random.default_rng(seed)
+        while True:
+            yield rng.random(4)
+    elif sampler == "sobol":
+        from scipy.stats import qmc
+
+        engine = qmc.Sobol(d=4, scramble=True, rng=np.random.default_rng(seed))
+        while True:
+            yield from engine.random(64)
+    else:
+        raise ValueError(f"unknown sampler {sampler!r}: choose 'sobol' or 'uniform'")
