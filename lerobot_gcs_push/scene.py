@@ -98,6 +98,18 @@ class Scene:
         return self.box_init_half_width
 
     @property
+    def push_lag_s(self) -> float:
+        """Seconds of motion the PID finger trails its command by while pushing at constant speed: the
+        box's damping force v * c must come from the proportional term m * kp * lag."""
+        return self.box_damping / (self.finger_mass * self.kp)
+
+    @property
+    def box_reach(self) -> float:
+        """Box centres the finger can still push from every face: a replanning expert may meet a box that
+        a disturbance knocked past the sampling region, and the planner accepts it up to here."""
+        return self.finger_limit - self.approach_distance
+
+    @property
     def finger_limit(self) -> float:
         """Finger commands are clipped to [-finger_limit, finger_limit]^2."""
         return self.box_limit + self.box_half + 2 * self.finger_radius + self.finger_margin
@@ -122,13 +134,15 @@ class Scene:
         inside = min(max(d[0], d[1]), 0.0)
         return float(outside + inside - self.finger_radius)
 
-    def validate_state(self, box, finger, *, what: str = "initial condition") -> tuple[np.ndarray, np.ndarray]:
+    def validate_state(self, box, finger, *, what: str = "initial condition",
+                       box_limit: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Return (box, finger) as arrays, or raise a ValueError that names the violation."""
         box = _vector2(box, f"{what}: box")
         finger = _vector2(finger, f"{what}: finger")
-        if np.max(np.abs(box)) > self.box_limit + 1e-9:
+        box_limit = self.box_limit if box_limit is None else box_limit
+        if np.max(np.abs(box)) > box_limit + 1e-9:
             raise ValueError(f"{what}: box {box.tolist()} lies outside the box workspace "
-                             f"|x|,|y| <= {self.box_limit}")
+                             f"|x|,|y| <= {box_limit}")
         if np.max(np.abs(finger)) > self.finger_limit + 1e-9:
             raise ValueError(f"{what}: finger {finger.tolist()} lies outside the finger workspace "
                              f"|x|,|y| <= {self.finger_limit}")

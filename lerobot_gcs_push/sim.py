@@ -21,6 +21,7 @@ from pydrake.geometry import (
     ColorRenderCamera,
     DepthRange,
     DepthRenderCamera,
+    LightParameter,
     MakeRenderEngineVtk,
     RenderCameraCore,
     RenderEngineVtkParams,
@@ -46,6 +47,11 @@ from lerobot_gcs_push.scene import Scene
 # past the view, and the goal marker must be thin enough to read as flat yet sit above the ground.
 _GROUND_THICKNESS_REL = 0.1
 _GOAL_THICKNESS_REL = 0.002
+# One light straight down and one along each horizontal axis: every face of the box, top or side, then
+# shows exactly its diffuse colour, instead of the near-black sides a single headlight gives (which
+# would look like the black finger).
+_LIGHTS = [LightParameter(type="directional", frame="world", direction=d, intensity=1.0)
+           for d in ([0, 0, -1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0])]
 _OBS_RENDERER = "vtk_obs"
 _RENDER_RENDERER = "vtk_render"
 
@@ -65,26 +71,63 @@ def _add_xy_slider(plant: MultibodyPlant, name: str, body, z: float, damping: fl
     return jx, jy
 
 
-def _add_finger(plant: MultibodyPlant, scene: Scene, *, with_geometry: bool):
+def _add_finger(plant: MultibodyPlant, scene: Scene, *, collision: bool, visual: bool):
     instance = plant.AddModelInstance("finger")
     body = plant.AddRigidBody("finger", instance,
                               SpatialInertia.SolidSphereWithMass(scene.finger_mass, scene.finger_radius))
     joints = _add_xy_slider(plant, "finger", body, scene.box_half, 0.0)
     for joint in joints:
         plant.AddJointActuator(joint.name(), joint)
-    if with_geometry:
-        sphere = Sphere(scene.finger_radius)
+    sphere = Sphere(scene.finger_radius)
+    if collision:
         friction = CoulombFriction(scene.finger_box_friction, scene.finger_box_friction)
         plant.RegisterCollisionGeometry(body, RigidTransform(), sphere, "finger", friction)
+    if visual:
         plant.RegisterVisualGeometry(body, RigidTransform(), sphere, "finger", np.array(scene.camera.finger_rgba))
     return instance, body, joints
 
 
+def _add_scene_plant(builder: DiagramBuilder, scene: Scene, *, visual: bool):
+    """The box, finger, ground and goal in a discrete plant; visual geometry only when `visual`."""
+    plant, scene_graph = AddMultibodyPlant(
+        MultibodyPlantConfig(time_step=scene.time_step, contact_model="point", discrete_contact_approximation="lagged"),
+        builder)
+    box_body = plant.AddRigidBody("box", plant.AddModelInstance("box"), SpatialInertia.SolidBoxWithMass(
+        scene.box_mass, scene.box_size, scene.box_size, scene.box_size))
+    box_joints = _add_xy_slider(plant, "box", box_body, scene.box_half, scene.box_damping)
+    cube = Box(scene.box_size, scene.box_size, scene.box_size)
+    friction = CoulombFriction(scene.finger_box_friction, scene.finger_box_friction)
+    plant.RegisterCollisionGeometry(box_body, RigidTransform(), cube, "box", friction)
+    finger_instance, finger_body, finger_joints = _add_finger(plant, scene, collision=True, visual=visual)
+    if visual:
+        camera = scene.camera
+        plant.RegisterVisualGeometry(box_body, RigidTransform(), cube, "box", np.array(camera.box_rgba))
+        world = plant.world_body()
+        side, ground_t = 4 * scene.view_half_width, _GROUND_THICKNESS_REL * scene.box_size
+        plant.RegisterVisualGeometry(world, RigidTransform([0, 0, -ground_t / 2]), Box(side, side, ground_t),
+                                     "ground", np.array(camera.ground_rgba))
+        goal_t = _GOAL_THICKNESS_REL * scene.box_size
+        plant.RegisterVisualGeometry(world, RigidTransform([*scene.goal, goal_t / 2]),
+                                     Box(scene.box_size, scene.box_size, goal_t), "goal", np.array(camera.goal_rgba))
+    plant.Finalize()
+    assert plant.num_positions() == 4 and plant.num_velocities() == 4
+    return plant, scene_graph, {"box_body": box_body, "box_joints": box_joints, "finger_instance": finger_instance,
+                                "finger_body": finger_body, "finger_joints": finger_joints}
+
+
 def _camera_info(scene: Scene, height_px: int, width_px: int) -> CameraInfo:
-    """Pinhole intrinsics that map the ground square [-v, v]^2 exactly onto the whole image."""
-    h, v = scene.camera.height_m, scene.view_half_width
-    return CameraInfo(width_px, height_px, width_px / 2 * h / v, height_px / 2 * h / v,
-                      width_px / 2 - 0.5, height_px / 2 - 0.5)
+    """Pinhole intrinsics that map the square [-v, v]^2 of the motion plane exactly onto the whole image.
+
+    The motion plane z = box_half holds the finger's and the box's centres, so a finger anywhere in its
+    commandable region is entirely in view (mapping the ground instead would cut it at the edges, since
+    perspective magnifies it by h / (h - box_half)).
+    """
+    depth, v = scene.camera.height_m - scene.box_half, scene.view_half_width
+    # Principal point W/2, not Drake's documented pixel-centre value W/2 - 0.5: RenderEngineVtk renders the
+    # optical axis half a pixel up-left of the stated one (measured: a sphere at the origin is centred on
+    # (W/2 - 1, H/2 - 1) otherwise); with W/2 it lands on the image centre ((W-1)/2, (H-1)/2), as tested.
+    return CameraInfo(width_px, height_px, width_px / 2 * depth / v, height_px / 2 * depth / v,
+                      width_px / 2, height_px / 2)
 
 
 class PushSim:
@@ -107,37 +150,15 @@ class PushSim:
         self._steps_per_tick = int(round(ticks))
 
         builder = DiagramBuilder()
-        plant, scene_graph = AddMultibodyPlant(
-            MultibodyPlantConfig(time_step=scene.time_step, contact_model="point",
-                                 discrete_contact_approximation="lagged"), builder)
+        plant, scene_graph, model = _add_scene_plant(builder, scene, visual=True)
         self.plant = plant
-
-        box_instance = plant.AddModelInstance("box")
-        box_body = plant.AddRigidBody("box", box_instance,
-                                      SpatialInertia.SolidBoxWithMass(scene.box_mass, scene.box_size, scene.box_size, scene.box_size))
-        box_joints = _add_xy_slider(plant, "box", box_body, scene.box_half, scene.box_damping)
-        cube = Box(scene.box_size, scene.box_size, scene.box_size)
-        friction = CoulombFriction(scene.finger_box_friction, scene.finger_box_friction)
-        plant.RegisterCollisionGeometry(box_body, RigidTransform(), cube, "box", friction)
-        plant.RegisterVisualGeometry(box_body, RigidTransform(), cube, "box", np.array(scene.camera.box_rgba))
-        finger_instance, finger_body, finger_joints = _add_finger(plant, scene, with_geometry=True)
-
-        world = plant.world_body()
-        ground_side = 4 * scene.view_half_width
-        ground_t = _GROUND_THICKNESS_REL * scene.box_size
-        plant.RegisterVisualGeometry(world, RigidTransform([0, 0, -ground_t / 2]), Box(ground_side, ground_side, ground_t),
-                                     "ground", np.array(scene.camera.ground_rgba))
-        goal_t = _GOAL_THICKNESS_REL * scene.box_size
-        plant.RegisterVisualGeometry(world, RigidTransform([*scene.goal, goal_t / 2]),
-                                     Box(scene.box_size, scene.box_size, goal_t), "goal",
-                                     np.array(scene.camera.goal_rgba))
-        plant.Finalize()
-        assert plant.num_positions() == 4 and plant.num_velocities() == 4
+        finger_instance, box_body = model["finger_instance"], model["box_body"]
+        box_joints, finger_joints = model["box_joints"], model["finger_joints"]
 
         # The controller sees only the finger: the box's dynamics are an unmodelled disturbance, as in
         # the paper's setup.
         control_plant = MultibodyPlant(time_step=0.0)
-        _add_finger(control_plant, scene, with_geometry=False)
+        _add_finger(control_plant, scene, collision=False, visual=False)
         control_plant.Finalize()
         self._control_plant = control_plant  # InverseDynamicsController keeps a reference
         gains = [np.full(2, g) for g in (scene.kp, scene.ki, scene.kd)]
@@ -155,7 +176,7 @@ class PushSim:
             renderers[_RENDER_RENDERER] = self.render_size
         for name in renderers:
             scene_graph.AddRenderer(name, MakeRenderEngineVtk(RenderEngineVtkParams(
-                backend="EGL", default_clear_color=np.array(scene.camera.ground_rgba[:3]))))
+                backend="EGL", default_clear_color=np.array(scene.camera.ground_rgba[:3]), lights=_LIGHTS)))
         X_WC = RigidTransform(RollPitchYaw(math.pi, 0, 0), [0, 0, scene.camera.height_m])
         near, far = 0.1 * scene.box_size, 2 * scene.camera.height_m
         for name, (rows, cols) in renderers.items():
@@ -176,7 +197,7 @@ class PushSim:
         self._controller_context = controller.GetMyMutableContextFromRoot(self._context)
         self._camera_contexts = {n: s.GetMyContextFromRoot(self._context) for n, s in self._cameras.items()}
         self._interpolator, self._controller = interpolator, controller
-        self._box_body, self._finger_body = box_body, finger_body
+        self._box_body = box_body
 
         self._q_box = [j.position_start() for j in box_joints]
         self._q_finger = [j.position_start() for j in finger_joints]
@@ -187,13 +208,24 @@ class PushSim:
         self._force_port = self.diagram.get_input_port(1).FixValue(self._context, np.zeros(4))
         self._force_buf = np.zeros(4)
         self._force_nonzero = False
-        self._default_context = self._context.Clone()
+        # Reset restores the state only: copying the whole context would also copy SceneGraph's
+        # parameters, which hold the render engines (milliseconds per reset).
+        self._default_xc = self._context.get_continuous_state_vector().CopyToVector()
+        self._default_xd = self._context.get_discrete_state().Clone()
+        self._default_xa = self._context.get_abstract_state().Clone()
         self._step_count = 0
 
-        # A separate context for collision queries so that checking a candidate never disturbs the sim.
-        self._query_port = plant.get_geometry_query_input_port()
-        self._query_root = self.diagram.CreateDefaultContext()
-        self._query_plant_context = plant.GetMyMutableContextFromRoot(self._query_root)
+        # Collision queries use a second, render-free copy of the same plant: checking a candidate never
+        # disturbs the simulation, and its context is cheap.
+        query_builder = DiagramBuilder()
+        query_plant, _, query_model = _add_scene_plant(query_builder, scene, visual=False)
+        self._query_diagram = query_builder.Build()
+        self._query_root = self._query_diagram.CreateDefaultContext()
+        self._query_plant = query_plant
+        self._query_plant_context = query_plant.GetMyMutableContextFromRoot(self._query_root)
+        self._query_port = query_plant.get_geometry_query_input_port()
+        assert [j.position_start() for j in query_model["box_joints"]] == self._q_box
+        assert [j.position_start() for j in query_model["finger_joints"]] == self._q_finger
 
         self.reset(np.array([0.0, 0.0]), np.array([0.0, -scene.finger_limit]))
 
@@ -202,7 +234,10 @@ class PushSim:
         """Place box and finger at rest at t = 0; the controller then holds the finger where it is."""
         box = np.asarray(box, dtype=float)
         finger = np.asarray(finger, dtype=float)
-        self._context.SetTimeStateAndParametersFrom(self._default_context)
+        self._context.SetTime(0.0)
+        self._context.SetContinuousState(self._default_xc)
+        self._context.get_mutable_discrete_state().SetFrom(self._default_xd)
+        self._context.get_mutable_abstract_state().SetFrom(self._default_xa)
         q = np.zeros(4)
         q[self._q_box] = box
         q[self._q_finger] = finger
@@ -290,7 +325,7 @@ class PushSim:
         q = np.zeros(4)
         q[self._q_box] = np.asarray(box, dtype=float)
         q[self._q_finger] = np.asarray(finger, dtype=float)
-        self.plant.SetPositions(self._query_plant_context, q)
+        self._query_plant.SetPositions(self._query_plant_context, q)
         query = self._query_port.Eval(self._query_plant_context)
         pairs = query.ComputeSignedDistancePairwiseClosestPoints()
         assert len(pairs) == 1, "the scene has exactly one collision pair: finger-box"
@@ -312,22 +347,28 @@ class PushSim:
         rgba = sensor.color_image_output_port().Eval(self._camera_contexts[name]).data
         return np.ascontiguousarray(rgba[:, :, :3])
 
-    def world_to_pixel(self, xy, z: float = 0.0, size: tuple[int, int] | None = None) -> np.ndarray:
+    def world_to_pixel(self, xy, z: float | None = None, size: tuple[int, int] | None = None) -> np.ndarray:
         """Continuous (row, col) of the world point (x, y, z) in an image of `size` (default: observation).
 
-        Pixel (r, c) has its centre at integer coordinates. On the ground (z = 0):
+        Pixel (r, c) has its centre at integer coordinates. In the motion plane z = box_half (default),
             col = (x + v) / (2 v) * W - 0.5,   row = (v - y) / (2 v) * H - 0.5,   v = view_half_width,
-        so the square [-v, v]^2 spans the image edge to edge. Points above the ground are scaled away
-        from the image centre by the perspective factor h / (h - z), h = camera height.
+        so the square [-v, v]^2 spans the image edge to edge (1 px = 2 v / W m; 0.131 m at 96 px). Points at
+        another height are scaled about the image centre by the perspective factor (h - box_half) / (h - z),
+        h = camera height: the box's top face (z = box_size) looks 2.6% larger, the ground 2.5% smaller.
         """
         rows, cols = size if size is not None else self.image_size
-        v, h = self.scene.view_half_width, self.scene.camera.height_m
-        xy = np.asarray(xy, dtype=float) * (h / (h - z))
+        v = self.scene.view_half_width
+        xy = np.asarray(xy, dtype=float) * self._perspective(z)
         return np.array([(v - xy[..., 1]) / (2 * v) * rows - 0.5, (xy[..., 0] + v) / (2 * v) * cols - 0.5]).T
 
-    def pixel_to_world(self, rc, size: tuple[int, int] | None = None) -> np.ndarray:
-        """Inverse of `world_to_pixel` on the ground plane: (row, col) -> (x, y)."""
+    def pixel_to_world(self, rc, z: float | None = None, size: tuple[int, int] | None = None) -> np.ndarray:
+        """Inverse of `world_to_pixel` at height z (default: the motion plane): (row, col) -> (x, y)."""
         rows, cols = size if size is not None else self.image_size
         v = self.scene.view_half_width
         rc = np.asarray(rc, dtype=float)
-        return np.array([(rc[..., 1] + 0.5) / cols * 2 * v - v, v - (rc[..., 0] + 0.5) / rows * 2 * v]).T
+        xy = np.array([(rc[..., 1] + 0.5) / cols * 2 * v - v, v - (rc[..., 0] + 0.5) / rows * 2 * v]).T
+        return xy / self._perspective(z)
+
+    def _perspective(self, z: float | None) -> float:
+        h, half = self.scene.camera.height_m, self.scene.box_half
+        return (h - half) / (h - (half if z is None else z))

@@ -58,7 +58,7 @@ class GcsPlanner:
     def plan(self, box, finger, goal=None, method: str | None = None) -> Plan:
         method = method or self.method
         scene = self.scene
-        box, finger = scene.validate_state(box, finger)
+        box, finger = scene.validate_state(box, finger, what="plan", box_limit=scene.box_reach)
         goal = scene.goal_array if goal is None else np.asarray(goal, float)
         if goal.shape != (2,) or not np.all(np.isfinite(goal)):
             raise ValueError(f"goal must be a finite pair [x, y], got {goal!r}")

@@ -158,7 +158,7 @@ def _free_vertex(scene: Scene, name: str, face: str, buffered_start: bool) -> Ve
         row[[0, 1]] = -n
         rows.append(row)
         rhs.append(-dist)
-    Ab, cb = _box_rows(FREE_DIM, [0, 1], scene.box_limit)
+    Ab, cb = _box_rows(FREE_DIM, [0, 1], scene.box_reach)
     Af, cf = _box_rows(FREE_DIM, [2, 3, 4, 5], scene.finger_limit)
     A = np.vstack([np.array(rows), Ab, Af])
     c = np.concatenate([rhs, cb, cf])
@@ -184,7 +184,7 @@ def _push_vertex(scene: Scene, name: str, face: str) -> Vertex:
     row[0:2], row[2:4] = n, -n
     rows.append(row)
     rhs.append(0.0)
-    Ab, cb = _box_rows(PUSH_DIM, [0, 1, 2, 3], scene.box_limit)
+    Ab, cb = _box_rows(PUSH_DIM, [0, 1, 2, 3], scene.box_reach)
     A = np.vstack([np.array(rows), Ab])
     c = np.concatenate([rhs, cb])
     g = np.concatenate([-n, n])  # n . (c - a): the push length

@@ -1,0 +1,116 @@
+"""Planner benchmark: our GCS relaxation and MICP against Drake's GraphOfConvexSets, side by side.
+
+    from benchmarks.planner_bench import run
+    stats = run(n=40, seed=0)   # a flat dict of floats; prints nothing
+
+One-time costs (building and compiling the cvxpy programs, compiling every path restriction in
+`warm_up`) are reported apart from per-query times. Per query, the three solvers run in the same loop,
+in an order that rotates from one query to the next, so machine noise hits all of them alike:
+
+* relaxation: `GcsPlanner.plan(method="relaxation")` (convex relaxation + rounding, Clarabel);
+* micp: `GcsPlanner.plan(method="micp")` (SCIP, then the chosen path's restriction);
+* drake: one `GraphOfConvexSets.SolveShortestPath` call (Clarabel, convex relaxation, up to 10 rounded
+  paths), built per query outside the timed call (the build time is reported separately).
+
+Quality: how often the relaxation's rounded plan is within 1% of the MICP optimum, the relaxation's
+lower-bound gap, Drake's agreement with the MICP, and the plan's execution time (`Plan.duration()` with
+default `Speeds`) next to the 112 s the paper reports.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from lerobot_gcs_push.planner import GcsPlanner, Speeds
+from lerobot_gcs_push.planner.drake_oracle import (build_drake_gcs, drake_options, planner_query,
+                                                   solve_drake_gcs)
+from lerobot_gcs_push.scene import Scene, sample_initial_conditions
+
+PAPER_DURATION_S = 112.0
+METHODS = ("relaxation", "micp", "drake")
+
+
+def _p95(x) -> float:
+    return float(np.percentile(x, 95))
+
+
+def run(n: int = 40, seed: int = 0) -> dict:
+    scene = Scene()
+    t0 = time.perf_counter()
+    planner = GcsPlanner(scene, method="relaxation", compile_now=False)
+    graph_build_s = time.perf_counter() - t0
+    planner.program("relaxation")
+    planner.program("micp")
+    warm_up_s = planner.warm_up()
+    options = drake_options(max_rounded_paths=10)
+
+    times = {m: [] for m in METHODS}
+    drake_build = []
+    relax_cost, relax_lb, micp_cost, drake_cost, durations, relax_durations = [], [], [], [], [], []
+    relax_solver = []
+    for k, ic in enumerate(sample_initial_conditions(scene, n, seed=seed)):
+        q = planner_query(planner, ic.box, ic.finger)
+        if q is None:  # box already at the goal: nothing to plan
+            continue
+        src, goal, allowed, extra = q
+        plans, drake = {}, None
+        for j in range(len(METHODS)):
+            m = METHODS[(k + j) % len(METHODS)]
+            if m == "drake":
+                tb = time.perf_counter()
+                dg = build_drake_gcs(planner.graph, src, goal, allowed)
+                drake_build.append(time.perf_counter() - tb)
+                drake = solve_drake_gcs(dg, options)
+                times[m].append(drake.solve_time_s)
+            else:
+                plans[m] = planner.plan(ic.box, ic.finger, method=m)
+                times[m].append(plans[m].solve_time_s)
+        r, mi = plans["relaxation"], plans["micp"]
+        relax_cost.append(r.cost)
+        relax_lb.append(r.lower_bound)
+        relax_solver.append(r.extra.get("relaxation_time_s", np.nan))
+        micp_cost.append(mi.cost)
+        drake_cost.append(drake.cost + extra)
+        durations.append(mi.duration(Speeds()))
+        relax_durations.append(r.duration(Speeds()))
+
+    relax_cost, relax_lb = np.array(relax_cost), np.array(relax_lb)
+    micp_cost, drake_cost = np.array(micp_cost), np.array(drake_cost)
+    drake_rel = (drake_cost - micp_cost) / micp_cost
+    out = {
+        "n": float(len(micp_cost)),
+        "seed": float(seed),
+        "graph_build_s": graph_build_s,
+        "compile_relaxation_s": float(planner.compile_time_s["relaxation"]),
+        "compile_micp_s": float(planner.compile_time_s["micp"]),
+        "warm_up_s": float(warm_up_s),
+    }
+    for m in METHODS:
+        out[f"{m}_median_s"] = float(np.median(times[m]))
+        out[f"{m}_p95_s"] = _p95(times[m])
+    out.update({
+        "relaxation_program_median_s": float(np.nanmedian(relax_solver)),
+        "drake_build_median_s": float(np.median(drake_build)),
+        "relaxation_within_1pct_frac": float(np.mean(relax_cost <= 1.01 * micp_cost)),
+        "relaxation_cost_rel_gap_median": float(np.median((relax_cost - micp_cost) / micp_cost)),
+        "relaxation_cost_rel_gap_max": float(np.max((relax_cost - micp_cost) / micp_cost)),
+        "lower_bound_rel_gap_median": float(np.median((micp_cost - relax_lb) / micp_cost)),
+        "lower_bound_rel_gap_max": float(np.max((micp_cost - relax_lb) / micp_cost)),
+        "drake_within_1pct_frac": float(np.mean(drake_cost <= 1.01 * micp_cost)),
+        "drake_rel_diff_max_abs": float(np.max(np.abs(drake_rel))),
+        "drake_below_micp_count": float(np.sum(drake_rel < -1e-6)),
+        "micp_cost_median_m": float(np.median(micp_cost)),
+        "plan_duration_median_s": float(np.median(durations)),
+        "plan_duration_p95_s": _p95(durations),
+        "relaxation_plan_duration_median_s": float(np.median(relax_durations)),
+        "paper_duration_s": PAPER_DURATION_S,
+    })
+    return out
+
+
+if __name__ == "__main__":  # pragma: no cover - convenience only
+    import json
+
+    print(json.dumps(run(), indent=2))
