@@ -97,7 +97,7 @@ def episode_seed(seed: int, index: int) -> int:
 _WORKER: dict = {}
 
 
-def _init_worker(cfg_dict: dict) -> None:
+def _init_worker(cfg_dict: dict, work_path: str) -> None:
     import gymnasium as gym
 
     import lerobot_gcs_push  # noqa: F401  (registers the env)
@@ -108,7 +108,7 @@ def _init_worker(cfg_dict: dict) -> None:
     env = gym.make("GcsPushBox-v0", fps=cfg.fps, image_size=cfg.image_size, disturbances=cfg.disturbances,
                    max_sim_time_s=cfg.max_sim_time_s).unwrapped
     planner = GcsPlanner(env.scene, method=cfg.method)
-    _WORKER.update(cfg=cfg, env=env, expert=GcsExpert(planner, cfg.fps, ExpertConfig(mode=cfg.expert, method=cfg.method)))
+    _WORKER.update(cfg=cfg, env=env, work=WorkDir(Path(work_path)), expert=GcsExpert(planner, cfg.fps, ExpertConfig(mode=cfg.expert, method=cfg.method)))
 
 
 def _run_episode(job: tuple[int, dict]) -> dict:
@@ -136,7 +136,9 @@ def _run_episode(job: tuple[int, dict]) -> dict:
         "wall_time_s": time.perf_counter() - t0, "disturbances": result["disturbances"],
     }
     arrays = {k: np.stack(v) for k, v in frames.items()} if result["success"] else {}
-    return {"meta": meta, "arrays": arrays}
+    # The worker compresses and saves its own episode; only the metadata travels back.
+    _WORKER["work"].save({"meta": meta, "arrays": arrays})
+    return meta
 
 
 # --- the work folder ---------------------------------------------------------------------------------
@@ -174,7 +176,7 @@ class WorkDir:
     def save(self, result: dict) -> None:
         meta = result["meta"]
         path = self.episode_file(meta["index"])
-        tmp = path.with_suffix(".tmp.npz")
+        tmp = path.with_name("." + path.name)  # not matched by done()'s glob until renamed
         np.savez_compressed(tmp, meta=json.dumps(meta), **{k.replace(".", "__"): v for k, v in result["arrays"].items()})
         os.replace(tmp, path)
 
@@ -220,48 +222,46 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
     done = work.done()
     max_attempts = int(np.ceil(cfg.episodes * cfg.max_attempts_factor)) + 10
     ics = sample_initial_conditions(scene, max_attempts, seed=cfg.seed, sampler=cfg.sampler)
-    successes = lambda: sorted(i for i, m in done.items() if m["success"])  # noqa: E731
-    # Indices still needed: the lowest indices whose outcome is unknown, until enough successes.
-    todo_iter = (i for i in range(max_attempts) if i not in done)
+    todo = ((i, ics[i].to_json()) for i in range(max_attempts) if i not in done)
 
     bar = _progress(cfg)
-    bar.update(min(len(successes()), cfg.episodes))
+    writer = _Writer(cfg, root)
     pool = None
+    failures = 0
     try:
         if cfg.workers > 1:
             ctx = mp.get_context("forkserver")
-            pool = ctx.Pool(cfg.workers, initializer=_init_worker, initargs=(asdict(cfg),))
-            mapper = lambda jobs: pool.imap(_run_episode, jobs)  # noqa: E731
+            pool = ctx.Pool(cfg.workers, initializer=_init_worker, initargs=(asdict(cfg), str(work.path)))
+            fresh = pool.imap(_run_episode, todo)
         else:
-            _init_worker(asdict(cfg))
-            mapper = lambda jobs: map(_run_episode, jobs)  # noqa: E731
-        while len(successes()) < cfg.episodes:
-            need = cfg.episodes - len(successes())
-            batch = [i for _, i in zip(range(max(need, cfg.workers)), todo_iter)]
-            if not batch:
-                raise RuntimeError(f"only {len(successes())} of {cfg.episodes} episodes succeeded after "
-                                   f"{max_attempts} initial conditions; see {work.path}")
-            for result in mapper([(i, ics[i].to_json()) for i in batch]):
-                work.save(result)
-                done[result["meta"]["index"]] = result["meta"]
-                failures = sum(not m["success"] for m in done.values())
-                bar.set_postfix(failures=failures, refresh=False)
-                if result["meta"]["success"] and len(successes()) <= cfg.episodes:
-                    bar.update(1)
+            _init_worker(asdict(cfg), str(work.path))
+            fresh = map(_run_episode, todo)
+        # Walk the indices in order, taking finished episodes from the work folder and new ones from the
+        # workers (imap keeps their order), so the dataset is the same whatever the worker count.
+        for index in range(max_attempts):
+            meta = done[index] if index in done else next(fresh)
+            if not meta["success"]:
+                failures += 1
+                bar.set_postfix(failures=failures)
+                continue
+            writer.add(meta, work.load_arrays(index))
+            bar.update(1)
+            if writer.episodes == cfg.episodes:
+                break
+        else:
+            raise RuntimeError(f"only {writer.episodes} of {cfg.episodes} episodes succeeded after "
+                               f"{max_attempts} initial conditions; their records are in {work.path}")
     finally:
         if pool is not None:
             pool.terminate()
             pool.join()
         bar.close()
-
-    chosen = successes()[: cfg.episodes]
-    frames = _assemble(cfg, root, work, chosen, done)
+    attempts = index + 1
+    writer.finish()
     shutil.rmtree(work.path, ignore_errors=True)
     wall = time.perf_counter() - t0
-    attempts = max(chosen) + 1
-    report = GenerateReport(str(root), cfg.repo_id, len(chosen), frames, attempts,
-                            sum(not done[i]["success"] for i in range(attempts)), wall,
-                            60.0 * len(chosen) / wall if wall > 0 else float("inf"))
+    report = GenerateReport(str(root), cfg.repo_id, writer.episodes, writer.frames, attempts, failures, wall,
+                            60.0 * writer.episodes / wall if wall > 0 else float("inf"))
     if cfg.push_to_hub:
         push_to_hub(cfg.repo_id, root)
     return report
@@ -274,29 +274,36 @@ def _progress(cfg: GenerateConfig):
                 dynamic_ncols=True)
 
 
-def _assemble(cfg: GenerateConfig, root: Path, work: WorkDir, chosen: list[int], done: dict) -> int:
-    """Write the chosen episodes as a LeRobotDataset in a staging folder, then move it into place."""
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+class _Writer:
+    """Writes episodes into a staging LeRobotDataset; `finish` finalizes it and moves it into place."""
 
-    staging = root.with_name(root.name + ".staging")
-    shutil.rmtree(staging, ignore_errors=True)
-    ds = LeRobotDataset.create(repo_id=cfg.repo_id, fps=cfg.fps, features=features(cfg.image_size), root=staging,
-                               robot_type="gcs_push_finger", use_videos=False)
-    frames = 0
-    lines = []
-    for ep, index in enumerate(chosen):
-        arrays = work.load_arrays(index)
+    def __init__(self, cfg: GenerateConfig, root: Path):
+        from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+        self.root = root
+        self.staging = root.with_name(root.name + ".staging")
+        shutil.rmtree(self.staging, ignore_errors=True)
+        self.ds = LeRobotDataset.create(repo_id=cfg.repo_id, fps=cfg.fps, features=features(cfg.image_size),
+                                        root=self.staging, robot_type="gcs_push_finger", use_videos=False,
+                                        video_backend="pyav")
+        self.episodes = 0
+        self.frames = 0
+        self.lines: list[str] = []
+
+    def add(self, meta: dict, arrays: dict[str, np.ndarray]) -> None:
         n = len(arrays["action"])
         for t in range(n):
-            ds.add_frame({k: arrays[k][t] for k in FEATURE_KEYS} | {"task": TASK})
-        ds.save_episode()
-        frames += n
-        lines.append(json.dumps({"episode_index": ep, **done[index]}))
-    ds.finalize()
-    (staging / EPISODES_META).write_text("\n".join(lines) + "\n")
-    root.parent.mkdir(parents=True, exist_ok=True)
-    os.replace(staging, root)
-    return frames
+            self.ds.add_frame({k: arrays[k][t] for k in FEATURE_KEYS} | {"task": TASK})
+        self.ds.save_episode()
+        self.lines.append(json.dumps({"episode_index": self.episodes, **meta}))
+        self.episodes += 1
+        self.frames += n
+
+    def finish(self) -> None:
+        self.ds.finalize()
+        (self.staging / EPISODES_META).write_text("\n".join(self.lines) + "\n")
+        self.root.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(self.staging, self.root)
 
 
 def read_episode_metadata(root) -> list[dict]:

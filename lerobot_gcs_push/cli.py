@@ -1,0 +1,200 @@
+"""`gcs-push`: plan, generate, evaluate, demo. Argument parsing only; the work lives in the modules."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import warnings
+
+os.environ.setdefault("HF_HUB_OFFLINE", "1")  # nothing here may reach the network unless asked to
+
+
+def _pair(name):
+    def parse(values):
+        return [float(v) for v in values]
+    return parse
+
+
+def load_initial_conditions(path: str) -> list[dict]:
+    """A JSON list of {"box": [x, y], "finger": [x, y]} (other keys ignored), with clear errors."""
+    try:
+        with open(path) as f:
+            data = json.load(f)
+    except FileNotFoundError:
+        raise SystemExit(f"error: initial-conditions file {path!r} does not exist") from None
+    except json.JSONDecodeError as err:
+        raise SystemExit(f"error: initial-conditions file {path!r} is not valid JSON: {err}") from None
+    if not isinstance(data, list):
+        raise SystemExit(f"error: {path!r} must hold a JSON list of {{\"box\": [x, y], \"finger\": [x, y]}}")
+    out = []
+    for i, item in enumerate(data):
+        try:
+            box, finger = item["box"], item["finger"]
+            box, finger = [float(v) for v in box], [float(v) for v in finger]
+            if len(box) != 2 or len(finger) != 2:
+                raise ValueError
+        except (KeyError, TypeError, ValueError):
+            raise SystemExit(f"error: {path!r} entry {i} must be {{\"box\": [x, y], \"finger\": [x, y]}}, "
+                             f"got {item!r}") from None
+        out.append({"box": box, "finger": finger})
+    return out
+
+
+def cmd_plan(args) -> int:
+    from lerobot_gcs_push.planner import GcsPlanner, SolverError
+    from lerobot_gcs_push.scene import Scene
+
+    if args.initial_conditions:
+        if args.box or args.finger:
+            raise SystemExit("error: give either --initial-conditions or --box/--finger, not both")
+        queries = load_initial_conditions(args.initial_conditions)
+    else:
+        if not (args.box and args.finger):
+            raise SystemExit("error: --box X Y and --finger X Y are required (or --initial-conditions FILE)")
+        queries = [{"box": args.box, "finger": args.finger}]
+    planner = GcsPlanner(Scene(), method=args.method)
+    for q in queries:
+        try:
+            plan = planner.plan(q["box"], q["finger"], goal=args.goal, method=args.method)
+        except ValueError as err:
+            raise SystemExit(f"error: {err}") from None
+        except SolverError as err:
+            raise SystemExit(f"solver error: {err}") from None
+        if args.json:
+            print(json.dumps(plan.to_json()), flush=True)
+        else:
+            print(f"cost {plan.cost:.4f} m (lower bound {plan.lower_bound:.4f}), {plan.num_pushes} push(es), "
+                  f"solved in {plan.solve_time_s * 1e3:.1f} ms with {plan.method}")
+            print("modes: " + " -> ".join(plan.modes or ["(box already at the goal)"]))
+            print(f"box ends at {plan.box_final.round(4).tolist()}, execution takes {plan.duration():.1f} s")
+    return 0
+
+
+def cmd_generate(args) -> int:
+    from lerobot_gcs_push.dataset import GenerateConfig, generate
+
+    try:
+        cfg = GenerateConfig(episodes=args.episodes, repo_id=args.repo_id, root=args.root, seed=args.seed,
+                             workers=args.workers, expert=args.expert, method=args.method, sampler=args.sampler,
+                             disturbances=args.disturbances, overwrite=args.overwrite, resume=args.resume,
+                             push_to_hub=args.push_to_hub)
+        report = generate(cfg)
+    except (ValueError, FileExistsError, RuntimeError) as err:
+        raise SystemExit(f"error: {err}") from None
+    print(f"wrote {report.episodes} demonstrations ({report.frames} frames) to {report.root} in "
+          f"{report.wall_time_s:.1f} s ({report.episodes_per_min:.1f} per minute); "
+          f"{report.failures} failed rollout(s) of {report.attempts} were left out")
+    return 0
+
+
+def cmd_evaluate(args) -> int:
+    from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate
+
+    try:
+        cfg = EvaluateConfig(policies=args.policy, initial_conditions=args.initial_conditions,
+                             num_initial_conditions=args.num_initial_conditions, seed=args.seed, runs=args.runs,
+                             disturbances=args.disturbances, output_dir=args.output_dir, device=args.device,
+                             workers=args.workers, timeout_s=args.timeout_s, dataset=args.dataset,
+                             videos=args.videos, overwrite=args.overwrite)
+        summary = evaluate(cfg)
+    except (ValueError, FileNotFoundError, FileExistsError) as err:
+        raise SystemExit(f"error: {err}") from None
+    print(summary["tables_md"])
+    print(f"records, tables and figures in {args.output_dir}")
+    return 0
+
+
+def cmd_demo(args) -> int:
+    """The main job: demonstrations, the GCS experts under the paper's protocol, tables and figures."""
+    from lerobot_gcs_push.dataset import GenerateConfig, dataset_root, generate
+    from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate
+
+    gen = GenerateConfig(episodes=args.episodes, repo_id=args.repo_id, workers=args.workers,
+                         resume=not args.overwrite, overwrite=args.overwrite)
+    root = dataset_root(gen)
+    if root.exists() and not args.overwrite:
+        print(f"dataset already at {root} (pass --overwrite to regenerate)")
+    else:
+        report = generate(gen)
+        print(f"wrote {report.episodes} demonstrations ({report.frames} frames) to {report.root} in "
+              f"{report.wall_time_s:.1f} s")
+    summary = evaluate(EvaluateConfig(policies=["gcs-open-loop", "gcs-closed-loop"],
+                                      num_initial_conditions=args.num_initial_conditions, runs=args.runs,
+                                      disturbances=True, output_dir=args.output_dir, workers=args.workers,
+                                      dataset=args.repo_id))
+    print(summary["tables_md"])
+    print(f"\ndataset:  {root}")
+    print(f"report:   {args.output_dir}/tables.md and figures in {args.output_dir}/")
+    print("train a policy on it (CPU preset):\n"
+          "  .venv/bin/lerobot-train --config_path=configs/policy/diffusion_cpu.json")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="gcs-push", description=__doc__)
+    sub = p.add_subparsers(dest="command", required=True)
+
+    pl = sub.add_parser("plan", help="plan one push task (or a file of them) with GCS")
+    pl.add_argument("--box", nargs=2, type=float, metavar=("X", "Y"))
+    pl.add_argument("--finger", nargs=2, type=float, metavar=("X", "Y"))
+    pl.add_argument("--goal", nargs=2, type=float, metavar=("X", "Y"))
+    pl.add_argument("--initial-conditions", metavar="FILE.json")
+    pl.add_argument("--method", choices=["relaxation", "micp"], default="relaxation")
+    pl.add_argument("--json", action="store_true", help="one JSON object per line")
+    pl.set_defaults(func=cmd_plan)
+
+    g = sub.add_parser("generate", help="write GCS demonstrations as a LeRobotDataset")
+    g.add_argument("--episodes", type=int, default=100)
+    g.add_argument("--repo-id", default="local/gcs_push_box")
+    g.add_argument("--root", default=None, help="default: $HF_LEROBOT_HOME/<repo-id>")
+    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--workers", type=int, default=2)
+    g.add_argument("--expert", choices=["open-loop", "closed-loop"], default="open-loop")
+    g.add_argument("--method", choices=["relaxation", "micp"], default="relaxation")
+    g.add_argument("--sampler", choices=["sobol", "uniform"], default="sobol")
+    g.add_argument("--disturbances", action="store_true")
+    mode = g.add_mutually_exclusive_group()
+    mode.add_argument("--overwrite", action="store_true")
+    mode.add_argument("--resume", action="store_true")
+    g.add_argument("--push-to-hub", action="store_true")
+    g.set_defaults(func=cmd_generate)
+
+    e = sub.add_parser("evaluate", help="the paper's evaluation protocol for any set of policies")
+    e.add_argument("--policy", action="append", required=True,
+                   help="gcs-open-loop, gcs-closed-loop, or a LeRobot pretrained_model directory (repeat)")
+    e.add_argument("--initial-conditions", metavar="FILE.json")
+    e.add_argument("--num-initial-conditions", type=int, default=20)
+    e.add_argument("--seed", type=int, default=1000)
+    e.add_argument("--runs", type=int, default=5)
+    e.add_argument("--disturbances", action="store_true")
+    e.add_argument("--output-dir", required=True)
+    e.add_argument("--device", default="cpu")
+    e.add_argument("--workers", type=int, default=1)
+    e.add_argument("--timeout-s", type=float, default=500.0)
+    e.add_argument("--dataset", default=None, help="repo id (or path) of the training dataset, for Fig. 4")
+    e.add_argument("--videos", type=int, default=2, help="rollout videos per policy")
+    e.add_argument("--overwrite", action="store_true")
+    e.set_defaults(func=cmd_evaluate)
+
+    d = sub.add_parser("demo", help="the main job on its defaults")
+    d.add_argument("--episodes", type=int, default=100)
+    d.add_argument("--repo-id", default="local/gcs_push_box")
+    d.add_argument("--workers", type=int, default=2)
+    d.add_argument("--num-initial-conditions", type=int, default=20)
+    d.add_argument("--runs", type=int, default=5)
+    d.add_argument("--output-dir", default="outputs/demo")
+    d.add_argument("--overwrite", action="store_true")
+    d.set_defaults(func=cmd_demo)
+    return p
+
+
+def main(argv=None) -> int:
+    warnings.filterwarnings("ignore", message=".*GcsPushBox-v0 not registered.*")
+    args = build_parser().parse_args(argv)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

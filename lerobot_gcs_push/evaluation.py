@@ -1,0 +1,422 @@
+"""The paper's evaluation protocol (section IV) for any set of policies: records, tables, figures.
+
+Policies: `gcs-open-loop` (plan once, execute), `gcs-closed-loop` (replan after disturbances), or a
+LeRobot `pretrained_model` directory (loaded through LeRobot's own factory and processors; its action
+chunks run exactly as in `lerobot-eval`). With `disturbances`, each closed-loop or learned policy is also
+run under the paper's force disturbances.
+
+Every run appends one JSON line to `runs.jsonl` as soon as it ends (with its trajectory saved first), so
+an interrupted evaluation keeps its finished runs and continues where it stopped.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing as mp
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from lerobot_gcs_push.dataset import TASK, episode_seed
+from lerobot_gcs_push.scene import Scene, sample_initial_conditions
+
+GCS_POLICIES = ("gcs-open-loop", "gcs-closed-loop")
+TIMING_FIELDS = ("run_time_s", "plan_time_s", "total_time_s")
+# The paper's Tables I and III, for the columns our variants reproduce.
+PAPER = {
+    ("gcs", False): {"label": "GCS Open Loop", "success": 1.00, "success_sim_time_s": 111.97,
+                     "run_time_s": 5.50, "plan_time_s": 126.07, "total_time_s": 131.57},
+    ("learned", False): {"label": "Diffusion Policy", "success": 0.67, "success_0.2": 0.775,
+                         "success_sim_time_s": 259.36, "run_time_s": 63.28, "plan_time_s": 0.0,
+                         "total_time_s": 63.28},
+    ("learned", True): {"label": "Diffusion Policy (Disturbances)", "success": 0.65, "success_0.2": 0.775,
+                        "success_sim_time_s": 259.58, "run_time_s": 80.91, "plan_time_s": 0.0,
+                        "total_time_s": 80.91},
+}
+
+
+@dataclass
+class EvaluateConfig:
+    policies: list[str] = field(default_factory=lambda: ["gcs-open-loop"])
+    initial_conditions: str | None = None  # JSON file; default: sampled from the training distribution
+    num_initial_conditions: int = 20
+    seed: int = 1000
+    runs: int = 5
+    disturbances: bool = False
+    output_dir: str = "outputs/eval"
+    device: str = "cpu"
+    workers: int = 1
+    timeout_s: float = 500.0
+    success_thresholds: tuple[float, float] = (0.1, 0.2)
+    dataset: str | None = None
+    videos: int = 2
+    overwrite: bool = False
+
+    def __post_init__(self) -> None:
+        if not self.policies:
+            raise ValueError("give at least one --policy")
+        if self.runs < 1 or self.num_initial_conditions < 1 or self.workers < 1:
+            raise ValueError("runs, num_initial_conditions and workers must be >= 1")
+        if not self.timeout_s > 0:
+            raise ValueError(f"timeout_s must be positive, got {self.timeout_s}")
+        for p in self.policies:
+            if p not in GCS_POLICIES and not (Path(p) / "config.json").is_file():
+                raise ValueError(f"unknown policy {p!r}: use {' or '.join(GCS_POLICIES)}, or a LeRobot "
+                                 f"pretrained_model directory (with config.json)")
+        if self.device not in ("cpu", "cuda", "mps") and not self.device.startswith("cuda:"):
+            raise ValueError(f"unknown device {self.device!r}")
+
+
+def variants(cfg: EvaluateConfig) -> list[tuple[str, bool]]:
+    out = []
+    for p in cfg.policies:
+        out.append((p, False))
+        if cfg.disturbances and p != "gcs-open-loop":
+            out.append((p, True))
+    return out
+
+
+def variant_label(policy: str, disturbances: bool) -> str:
+    name = policy if policy in GCS_POLICIES else _learned_name(policy)
+    return name + (" +dist" if disturbances else "")
+
+
+def _learned_name(path: str) -> str:
+    p = Path(path).resolve()
+    parts = [x for x in p.parts[-4:] if x not in ("pretrained_model", "checkpoints")]
+    return "dp:" + "/".join(parts[-2:])
+
+
+def _slug(label: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in label).strip("_")
+
+
+def initial_conditions(cfg: EvaluateConfig) -> list[dict]:
+    if cfg.initial_conditions:
+        from lerobot_gcs_push.cli import load_initial_conditions
+
+        ics = load_initial_conditions(cfg.initial_conditions)
+        scene = Scene()
+        for i, ic in enumerate(ics):
+            scene.validate_state(ic["box"], ic["finger"], what=f"initial condition {i}")
+        return ics
+    # The paper samples its evaluation set from the training distribution: uniform over the workspace.
+    return [ic.to_json() for ic in sample_initial_conditions(Scene(), cfg.num_initial_conditions, seed=cfg.seed,
+                                                             sampler="uniform")]
+
+
+# --- rollouts, in worker processes --------------------------------------------------------------------
+class _Runner:
+    def __init__(self, cfg: EvaluateConfig, out: Path):
+        import gymnasium as gym
+
+        import lerobot_gcs_push  # noqa: F401
+
+        self.cfg, self.out = cfg, out
+        self.envs = {d: gym.make("GcsPushBox-v0", disturbances=d, max_sim_time_s=cfg.timeout_s,
+                                 success_threshold=cfg.success_thresholds[0]).unwrapped for d in (False, True)}
+        self._experts: dict = {}
+        self._learned: dict = {}
+
+    def expert(self, name: str):
+        if name not in self._experts:
+            from lerobot_gcs_push.expert import ExpertConfig, GcsExpert
+            from lerobot_gcs_push.planner import GcsPlanner
+
+            planner = self._experts.get("_planner") or GcsPlanner(self.envs[False].scene)
+            self._experts["_planner"] = planner
+            mode = name.removeprefix("gcs-")
+            self._experts[name] = GcsExpert(planner, self.envs[False].fps, ExpertConfig(mode=mode))
+        return self._experts[name]
+
+    def learned(self, path: str):
+        if path not in self._learned:
+            self._learned[path] = LearnedPolicy(path, self.cfg.device)
+        return self._learned[path]
+
+    def run(self, job: dict) -> dict:
+        policy, dist, i, r, ic = job["policy"], job["disturbances"], job["ic_index"], job["run"], job["ic"]
+        env = self.envs[dist]
+        seed = episode_seed(self.cfg.seed, (i * self.cfg.runs + r) * 2 + int(dist))
+        frames = [] if job["video"] else None
+        traj_f, traj_b = [], []
+
+        def on_step(obs, action, info):
+            traj_f.append(np.asarray(info["finger"], float))
+            traj_b.append(np.asarray(info["box"], float))
+            if frames is not None:
+                frames.append(env.render())
+
+        if policy in GCS_POLICIES:
+            from lerobot_gcs_push.expert import rollout
+
+            res = rollout(env, self.expert(policy), ic["box"], ic["finger"], seed=seed, on_step=on_step)
+            plan_time = res["plan_time_s"]
+        else:
+            res = self.learned(policy).rollout(env, ic, seed, on_step)
+            plan_time = 0.0
+        traj_f.append(np.asarray(res["finger_final"], float))
+        traj_b.append(np.asarray(res["box_final"], float))
+        label = variant_label(policy, dist)
+        tdir = self.out / "trajectories" / _slug(label)
+        tdir.mkdir(parents=True, exist_ok=True)
+        tpath = tdir / f"ic{i:03d}_run{r}.npz"
+        _atomic_savez(tpath, finger=np.array(traj_f), box=np.array(traj_b))
+        if frames:
+            frames.append(env.render())
+            write_video(self.out / "videos" / f"{_slug(label)}_ic{i:03d}.mp4", frames, env.fps)
+        thr2 = self.cfg.success_thresholds[1]
+        return {
+            "policy": policy, "label": label, "disturbances": dist, "initial_condition_index": i,
+            "box_initial": ic["box"], "finger_initial": ic["finger"], "run": r, "seed": seed,
+            "success": bool(res["success"]), f"success_{thr2:g}": bool(res["success"] or res["final_distance"] <= thr2),
+            "final_distance": res["final_distance"], "sim_time_s": res["sim_time_s"],
+            "run_time_s": res["run_time_s"], "plan_time_s": plan_time, "total_time_s": res["run_time_s"] + plan_time,
+            "num_disturbances": len(res.get("disturbances", [])), "trajectory": str(tpath.relative_to(self.out)),
+        }
+
+
+class LearnedPolicy:
+    """A LeRobot checkpoint, run the way lerobot-eval runs it (processors, action queue)."""
+
+    def __init__(self, path: str, device: str):
+        import torch
+        from lerobot.configs.policies import PreTrainedConfig
+        from lerobot.policies.factory import make_policy, make_pre_post_processors
+
+        from lerobot_gcs_push.lerobot_plugin import GcsPushEnvConfig
+
+        cfg = PreTrainedConfig.from_pretrained(path)
+        cfg.pretrained_path = path
+        cfg.device = device
+        self.policy = make_policy(cfg, env_cfg=GcsPushEnvConfig())
+        self.policy.eval()
+        self.pre, self.post = make_pre_post_processors(
+            cfg, pretrained_path=path, preprocessor_overrides={"device_processor": {"device": device}})
+        self.torch = torch
+
+    def rollout(self, env, ic: dict, seed: int, on_step) -> dict:
+        from lerobot.envs.utils import preprocess_observation
+
+        torch = self.torch
+        torch.manual_seed(seed)
+        self.policy.reset()
+        obs, info = env.reset(seed=seed, options={"box": ic["box"], "finger": ic["finger"]})
+        t0 = time.perf_counter()
+        terminated = truncated = False
+        while not (terminated or truncated):
+            batch = preprocess_observation({"pixels": obs["pixels"][None], "agent_pos": obs["agent_pos"][None]})
+            batch["task"] = [TASK]
+            with torch.inference_mode():
+                action = self.post(self.policy.select_action(self.pre(batch)))
+            action = action.reshape(-1)[:2].cpu().numpy().astype(np.float64)
+            on_step(obs, action, info)
+            obs, _, terminated, truncated, info = env.step(action)
+        return {"success": bool(info["is_success"]), "final_distance": float(info["box_goal_distance"]),
+                "sim_time_s": float(info["sim_time_s"]), "run_time_s": time.perf_counter() - t0,
+                "box_final": np.asarray(info["box"]).tolist(), "finger_final": np.asarray(info["finger"]).tolist(),
+                "disturbances": info.get("disturbances", [])}
+
+
+_RUNNER: dict = {}
+
+
+def _init_worker(cfg_dict: dict, out: str) -> None:
+    try:
+        import torch
+
+        torch.set_num_threads(1)  # one process per core
+    except ImportError:  # pragma: no cover
+        pass
+    _RUNNER["r"] = _Runner(EvaluateConfig(**cfg_dict), Path(out))
+
+
+def _run_job(job: dict) -> dict:
+    return _RUNNER["r"].run(job)
+
+
+def _atomic_savez(path: Path, **arrays) -> None:
+    tmp = path.with_name("." + path.name)
+    with open(tmp, "wb") as f:
+        np.savez_compressed(f, **arrays)
+    os.replace(tmp, path)
+
+
+def write_video(path: Path, frames: list[np.ndarray], fps: float) -> None:
+    import av
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name("." + path.name)
+    with av.open(str(tmp), mode="w", format="mp4") as container:
+        stream = container.add_stream("mpeg4", rate=int(round(fps)))
+        stream.height, stream.width = frames[0].shape[:2]
+        stream.pix_fmt = "yuv420p"
+        stream.bit_rate = 2_000_000
+        for img in frames:
+            for packet in stream.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="rgb24")):
+                container.mux(packet)
+        for packet in stream.encode():
+            container.mux(packet)
+    os.replace(tmp, path)
+
+
+# --- the records ----------------------------------------------------------------------------------------
+def read_runs(path: Path) -> list[dict]:
+    """Finished runs; a line cut short by a kill is dropped (its run is simply done again)."""
+    if not path.exists():
+        return []
+    out = []
+    for line in path.read_text().splitlines():
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError:
+            continue
+    return out
+
+
+def _key(rec: dict) -> tuple:
+    return rec["policy"], bool(rec["disturbances"]), int(rec["initial_condition_index"]), int(rec["run"])
+
+
+def evaluate(cfg: EvaluateConfig) -> dict:
+    out = Path(cfg.output_dir)
+    ics = initial_conditions(cfg)
+    settings = {"initial_conditions": ics, "seed": cfg.seed, "runs": cfg.runs, "timeout_s": cfg.timeout_s,
+                "success_thresholds": list(cfg.success_thresholds)}
+    runs_path = out / "runs.jsonl"
+    if cfg.overwrite and out.exists():
+        import shutil
+
+        shutil.rmtree(out)
+    out.mkdir(parents=True, exist_ok=True)
+    settings_path = out / "settings.json"
+    if settings_path.exists() and json.loads(settings_path.read_text()) != settings:
+        raise FileExistsError(f"{out} holds an evaluation with other initial conditions or settings; "
+                              f"pass --overwrite or choose another --output-dir")
+    settings_path.write_text(json.dumps(settings, indent=1))
+
+    records = read_runs(runs_path)
+    # Rewrite without any torn last line, so that appends start on a fresh line.
+    runs_path.write_text("".join(json.dumps(r) + "\n" for r in records))
+    done = {_key(r) for r in records}
+    jobs = []
+    for policy, dist in variants(cfg):
+        for i, ic in enumerate(ics):
+            for r in range(cfg.runs):
+                if (policy, dist, i, r) not in done:
+                    jobs.append({"policy": policy, "disturbances": dist, "ic_index": i, "run": r, "ic": ic,
+                                 "video": r == 0 and i < cfg.videos})
+    _run_all(cfg, out, jobs, runs_path)
+    records = [r for r in read_runs(runs_path) if (r["policy"], r["disturbances"]) in set(variants(cfg))]
+    summary = summarize(cfg, records, ics)
+    (out / "summary.json").write_text(json.dumps({k: v for k, v in summary.items() if k != "tables_md"}, indent=1))
+    (out / "tables.md").write_text(summary["tables_md"])
+    from lerobot_gcs_push.figures import make_figures
+
+    summary["figures"] = make_figures(cfg, out, records, ics)
+    return summary
+
+
+def _run_all(cfg: EvaluateConfig, out: Path, jobs: list[dict], runs_path: Path) -> None:
+    if not jobs:
+        return
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=len(jobs), desc="evaluation runs", unit="run", dynamic_ncols=True)
+    ok = 0
+
+    def append(rec: dict) -> None:
+        nonlocal ok
+        with open(runs_path, "a") as f:
+            f.write(json.dumps(rec) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+        ok += rec["success"]
+        bar.update(1)
+        bar.set_postfix(success=f"{ok}/{bar.n}")
+
+    try:
+        if cfg.workers > 1:
+            ctx = mp.get_context("forkserver")
+            with ctx.Pool(cfg.workers, initializer=_init_worker, initargs=(asdict(cfg), str(out))) as pool:
+                for rec in pool.imap_unordered(_run_job, jobs):
+                    append(rec)
+        else:
+            runner = _Runner(cfg, out)
+            for job in jobs:
+                append(runner.run(job))
+    finally:
+        bar.close()
+
+
+# --- tables -----------------------------------------------------------------------------------------------
+def _mean(xs) -> float | None:
+    xs = list(xs)
+    return float(np.mean(xs)) if xs else None
+
+
+def summarize(cfg: EvaluateConfig, records: list[dict], ics: list[dict]) -> dict:
+    thr1, thr2 = cfg.success_thresholds
+    s2 = f"success_{thr2:g}"
+    per_variant = {}
+    for policy, dist in variants(cfg):
+        recs = [r for r in records if r["policy"] == policy and r["disturbances"] == dist]
+        succ = [r for r in recs if r["success"]]
+        per_variant[variant_label(policy, dist)] = {
+            "policy": policy, "disturbances": dist, "runs": len(recs),
+            "success": _mean(r["success"] for r in recs), s2: _mean(r[s2] for r in recs),
+            "success_sim_time_s": _mean(r["sim_time_s"] for r in succ),
+            "run_time_s": _mean(r["run_time_s"] for r in succ), "plan_time_s": _mean(r["plan_time_s"] for r in succ),
+            "total_time_s": _mean(r["total_time_s"] for r in succ),
+            "per_initial_condition": {
+                i: {"success": _mean(r["success"] for r in recs if r["initial_condition_index"] == i),
+                    s2: _mean(r[s2] for r in recs if r["initial_condition_index"] == i)}
+                for i in range(len(ics))},
+        }
+    return {"variants": per_variant, "tables_md": _tables_md(cfg, per_variant, ics)}
+
+
+def _fmt(x, digits=2) -> str:
+    return "-" if x is None else f"{x:.{digits}f}"
+
+
+def _paper_ref(v: dict) -> dict | None:
+    kind = "gcs" if v["policy"] == "gcs-open-loop" else ("learned" if v["policy"] not in GCS_POLICIES else None)
+    return PAPER.get((kind, v["disturbances"])) if kind else None
+
+
+def _tables_md(cfg: EvaluateConfig, pv: dict, ics: list[dict]) -> str:
+    thr1, thr2 = cfg.success_thresholds
+    s2 = f"success_{thr2:g}"
+    lines = [f"# Evaluation: {len(ics)} initial conditions x {cfg.runs} runs, timeout {cfg.timeout_s:g} s\n",
+             f"## Table I: success (box within {thr1:g} m) and mean success simulation time\n",
+             f"| policy | runs | success {thr1:g} m | success {thr2:g} m | sim time (s) | paper success | paper sim time (s) |",
+             "|---|---|---|---|---|---|---|"]
+    for label, v in pv.items():
+        ref = _paper_ref(v) or {}
+        lines.append(f"| {label} | {v['runs']} | {_fmt(v['success'])} | {_fmt(v[s2])} | "
+                     f"{_fmt(v['success_sim_time_s'], 1)} | {_fmt(ref.get('success'))} | "
+                     f"{_fmt(ref.get('success_sim_time_s'), 1)} |")
+    lines += ["", f"## Table II: success per initial condition ({thr1:g} m / {thr2:g} m)\n"]
+    labels = list(pv)
+    lines.append("| IC | box | " + " | ".join(labels) + " |")
+    lines.append("|---|---|" + "---|" * len(labels))
+    for i, ic in enumerate(ics):
+        cells = []
+        for label in labels:
+            c = pv[label]["per_initial_condition"][i]
+            cells.append(f"{_fmt(c['success'])} / {_fmt(c[s2])}")
+        lines.append(f"| {i} | ({ic['box'][0]:.2f}, {ic['box'][1]:.2f}) | " + " | ".join(cells) + " |")
+    lines += ["", "## Table III: mean run, plan and total time of successful runs (s)\n",
+              "| policy | run | plan | total | paper run | paper plan | paper total |", "|---|---|---|---|---|---|---|"]
+    for label, v in pv.items():
+        ref = _paper_ref(v) or {}
+        lines.append(f"| {label} | {_fmt(v['run_time_s'], 3)} | {_fmt(v['plan_time_s'], 3)} | "
+                     f"{_fmt(v['total_time_s'], 3)} | {_fmt(ref.get('run_time_s'))} | {_fmt(ref.get('plan_time_s'))} | "
+                     f"{_fmt(ref.get('total_time_s'))} |")
+    lines.append("\nRun time: wall time of the rollout, policy inference and closed-loop replanning included; plan "
+                 "time: the GCS plan made before execution (paper IV-B). Simulation time is simulated seconds.")
+    return "\n".join(lines) + "\n"
