@@ -10,7 +10,9 @@ in an order that rotates from one query to the next, so machine noise hits all o
 * relaxation: `GcsPlanner.plan(method="relaxation")` (convex relaxation + rounding, Clarabel);
 * micp: `GcsPlanner.plan(method="micp")` (SCIP, then the chosen path's restriction);
 * drake: one `GraphOfConvexSets.SolveShortestPath` call (Clarabel, convex relaxation, up to 10 rounded
-  paths), built per query outside the timed call (the build time is reported separately).
+  paths), built per query outside the timed call (the build time is reported separately);
+* drake_exact: Drake's convex restriction of every allowed simple path (the exact optimum by
+  enumeration; build excluded), for scale.
 
 Quality: how often the relaxation's rounded plan is within 1% of the MICP optimum, the relaxation's
 lower-bound gap, Drake's agreement with the MICP, and the plan's execution time (`Plan.duration()` with
@@ -25,11 +27,11 @@ import numpy as np
 
 from lerobot_gcs_push.planner import GcsPlanner, Speeds
 from lerobot_gcs_push.planner.drake_oracle import (build_drake_gcs, drake_options, planner_query,
-                                                   solve_drake_gcs)
+                                                   solve_drake_gcs, solve_with_drake)
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
 PAPER_DURATION_S = 112.0
-METHODS = ("relaxation", "micp", "drake")
+METHODS = ("relaxation", "micp", "drake", "drake_exact")
 
 
 def _p95(x) -> float:
@@ -49,7 +51,7 @@ def run(n: int = 40, seed: int = 0) -> dict:
     times = {m: [] for m in METHODS}
     drake_build = []
     relax_cost, relax_lb, micp_cost, drake_cost, durations, relax_durations = [], [], [], [], [], []
-    relax_solver = []
+    relax_solver, exact_cost = [], []
     for k, ic in enumerate(sample_initial_conditions(scene, n, seed=seed)):
         q = planner_query(planner, ic.box, ic.finger)
         if q is None:  # box already at the goal: nothing to plan
@@ -64,6 +66,10 @@ def run(n: int = 40, seed: int = 0) -> dict:
                 drake_build.append(time.perf_counter() - tb)
                 drake = solve_drake_gcs(dg, options)
                 times[m].append(drake.solve_time_s)
+            elif m == "drake_exact":
+                exact = solve_with_drake(planner.graph, src, goal, allowed, relaxation=False)
+                times[m].append(exact.solve_time_s)
+                exact_cost.append(exact.cost + extra)
             else:
                 plans[m] = planner.plan(ic.box, ic.finger, method=m)
                 times[m].append(plans[m].solve_time_s)
@@ -79,6 +85,7 @@ def run(n: int = 40, seed: int = 0) -> dict:
     relax_cost, relax_lb = np.array(relax_cost), np.array(relax_lb)
     micp_cost, drake_cost = np.array(micp_cost), np.array(drake_cost)
     drake_rel = (drake_cost - micp_cost) / micp_cost
+    exact_rel = (np.array(exact_cost) - micp_cost) / micp_cost
     out = {
         "n": float(len(micp_cost)),
         "seed": float(seed),
@@ -101,6 +108,8 @@ def run(n: int = 40, seed: int = 0) -> dict:
         "drake_within_1pct_frac": float(np.mean(drake_cost <= 1.01 * micp_cost)),
         "drake_rel_diff_max_abs": float(np.max(np.abs(drake_rel))),
         "drake_below_micp_count": float(np.sum(drake_rel < -1e-6)),
+        "drake_exact_rel_diff_max_abs": float(np.max(np.abs(exact_rel))),
+        "drake_exact_below_micp_count": float(np.sum(exact_rel < -1e-6)),
         "micp_cost_median_m": float(np.median(micp_cost)),
         "plan_duration_median_s": float(np.median(durations)),
         "plan_duration_p95_s": _p95(durations),

@@ -21,9 +21,9 @@ import numpy as np
 from gymnasium import spaces
 
 from lerobot_gcs_push.scene import Disturbances, Scene, sample_initial_conditions
+from lerobot_gcs_push.registration import ENV_IDS, register_envs  # noqa: F401  (re-exported)
 from lerobot_gcs_push.sim import PushSim
 
-ENV_IDS = ("GcsPushBox-v0", "gym_gcs_push/GcsPushBox-v0")
 OBS_TYPES = ("pixels_agent_pos", "state")
 
 # A force along +x pushes on the box's left (-x) face, and so on.
@@ -37,7 +37,7 @@ class Disturbance:
     face: str  # the face the force pushes on
 
     def to_info(self, tick_s: float) -> dict:
-        return {"t": self.tick * tick_s, "force": list(self.force), "face": self.face}
+        return {"t": round(self.tick * tick_s, 9), "force": list(self.force), "face": self.face}
 
 
 class DisturbanceSchedule:
@@ -59,12 +59,14 @@ class DisturbanceSchedule:
         """Forces (n_ticks, 2) for the next `n_ticks` ticks, or None when none acts."""
         p = self.protocol
         start, end = self._tick, self._tick + n_ticks
-        room = p.max_count - len(self.started)
-        if room > 0:
-            for i in np.flatnonzero(self.rng.random(n_ticks) < p.probability_per_tick)[:room]:
+        # Tick by tick, so the draws (and so the disturbances of a seed) do not depend on the env's fps.
+        for tick in range(start, end):
+            if len(self.started) >= p.max_count:
+                break
+            if self.rng.random() < p.probability_per_tick:
                 magnitude = self.rng.uniform(*p.force_range_n)
                 (dx, dy), face = _DIRECTIONS[self.rng.integers(len(_DIRECTIONS))]
-                self.started.append(Disturbance(start + int(i), (magnitude * dx, magnitude * dy), face))
+                self.started.append(Disturbance(tick, (magnitude * dx, magnitude * dy), face))
         out = None
         for d in self.started:
             lo, hi = max(d.tick, start), min(d.tick + p.duration_ticks, end)
@@ -182,14 +184,3 @@ def _size(size) -> tuple[int, int]:
     if int(rows) != rows or int(cols) != cols or rows < 1 or cols < 1:
         raise ValueError(f"image size must be a positive int or (rows, cols), got {size!r}")
     return int(rows), int(cols)
-
-
-def register_envs() -> None:
-    """Register `GcsPushBox-v0` and LeRobot's id for it; calling again is harmless.
-
-    No `max_episode_steps` here: the env truncates itself at `max_sim_time_s`, which depends on its
-    kwargs, so a registry TimeLimit could only disagree with it.
-    """
-    for env_id in ENV_IDS:
-        if env_id not in gym.envs.registry:
-            gym.register(id=env_id, entry_point="lerobot_gcs_push.env:GcsPushBoxEnv")

@@ -3,18 +3,35 @@
 LeRobot 0.6.1 finds it through the `lerobot_env_gcs_push` shim (imported for every installed
 distribution named `lerobot_env_*`), which imports this module.
 
-Importing `lerobot_gcs_push` at the top is deliberate: lerobot-eval's async vector env builds each
-env in a forkserver worker that unpickles this config (and so imports this module) before calling
-`gym.make`; the import registers the gym ids there too.
+The gym id is registered at import time on purpose: lerobot-eval's async vector env builds each env
+in a forkserver worker that unpickles this config (and so imports this module) before `gym.make`.
 """
 
 from dataclasses import dataclass, field
 
+import gymnasium as gym
 from lerobot.configs import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
 from lerobot.utils.constants import ACTION, OBS_IMAGE, OBS_STATE
 
-import lerobot_gcs_push  # noqa: F401  (registers GcsPushBox-v0 and gym_gcs_push/GcsPushBox-v0)
+from lerobot_gcs_push.dataset import TASK
+from lerobot_gcs_push.env import GcsPushBoxEnv
+
+GYM_NAMESPACE = "gcs_push"
+
+
+class LeRobotGcsPushBoxEnv(GcsPushBoxEnv):
+    """`GcsPushBoxEnv` with the `task` / `task_description` lerobot-eval queries on every sub-env.
+
+    lerobot-eval calls `env.call("task_description")` and `env.get_attr("task")`; in an AsyncVectorEnv
+    a missing attribute kills the worker, so both must exist. They hold the datasets' task string.
+    """
+
+    task = task_description = TASK
+
+
+if f"{GYM_NAMESPACE}/GcsPushBox-v0" not in gym.registry:
+    gym.register(id=f"{GYM_NAMESPACE}/GcsPushBox-v0", entry_point=LeRobotGcsPushBoxEnv)
 
 
 @EnvConfig.register_subclass("gcs_push")
@@ -48,11 +65,11 @@ class GcsPushEnvConfig(EnvConfig):
 
     @property
     def package_name(self) -> str:
-        return "lerobot_gcs_push"  # what create_envs imports if the gym id is not registered yet
+        return __name__  # what create_envs imports if the gym id is not registered yet
 
     @property
     def gym_id(self) -> str:
-        return f"gym_gcs_push/{self.task}"
+        return f"{GYM_NAMESPACE}/{self.task}"
 
     @property
     def gym_kwargs(self) -> dict:

@@ -147,7 +147,7 @@ class Scene:
             raise ValueError(f"{what}: finger {finger.tolist()} lies outside the finger workspace "
                              f"|x|,|y| <= {self.finger_limit}")
         gap = self.finger_box_gap(box, finger)
-        if gap < 0:
+        if gap < -1e-9:  # touching counts as valid, whatever the rounding of box - contact distance
             raise ValueError(f"{what}: finger {finger.tolist()} overlaps the box {box.tolist()} "
                              f"(penetration {-gap:.3f} m)")
         return box, finger

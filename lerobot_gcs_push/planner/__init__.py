@@ -36,7 +36,7 @@ class GcsPlanner:
         self.graph: ModeGraph = build_graph(self.scene, structure, num_pushes)
         self.rounding_trials = rounding_trials
         self.goal_tolerance = goal_tolerance
-        self.rng = np.random.default_rng(seed)
+        self.seed = seed
         self._programs: dict[str, GcsProgram] = {}
         self.restrictions = RestrictionCache(self.graph)
         self.compile_time_s: dict[str, float] = {}
@@ -76,13 +76,15 @@ class GcsPlanner:
         prog.set_query(src, goal_eff, self.graph.edge_allowed(delta, 0.0))
         flows = prog.solve()
         if method == "micp":
-            paths = candidate_paths(self.graph, flows.flows, self.rng, 1, min_flow=0.5)
+            paths = candidate_paths(self.graph, flows.flows, None, 1, min_flow=0.5)
         else:
-            paths = candidate_paths(self.graph, flows.flows, self.rng, self.rounding_trials)
+            # Seeded by the query, so a plan never depends on what this planner solved before.
+            rng = np.random.default_rng([self.seed, *np.frombuffer(np.r_[src, goal_eff].tobytes(), np.uint32)])
+            paths = candidate_paths(self.graph, flows.flows, rng, self.rounding_trials)
         best = None
         for p in paths:
             sol = self.restrictions.solve(p, src, goal_eff)
-            if best is None or sol.cost < best.cost:
+            if best is None or sol.rank() < best.rank():
                 best = sol
         if best is None or not np.isfinite(best.cost):
             raise SolverError(f"rounding found no feasible path among {len(paths)} candidates "

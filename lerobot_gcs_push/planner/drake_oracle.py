@@ -147,7 +147,9 @@ def _cost(result) -> float:
 
 def solve_drake_gcs(dg: DrakeGcs, options: GraphOfConvexSetsOptions) -> DrakeResult:
     """One `SolveShortestPath` call (with rounding when options.max_rounded_paths > 0). The returned
-    cost is Drake's rounded cost; with max_rounded_paths == 0 it is the relaxation's optimum."""
+    cost is Drake's rounded cost; with max_rounded_paths == 0 it is the relaxation's optimum.
+    convex_relaxation=False would need a licensed mixed-integer solver (Mosek/Gurobi): use
+    `solve_with_drake(..., relaxation=False)` for the exact optimum instead."""
     with quiet_drake():
         t0 = time.perf_counter()
         result = dg.gcs.SolveShortestPath(dg.source, dg.target, options)

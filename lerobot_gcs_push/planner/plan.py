@@ -156,7 +156,8 @@ def trace(scene: Scene, graph: ModeGraph, vertices, points: dict[int, np.ndarray
         vert = graph.vertices[v]
         if vert.kind == "free":
             x = points[v]
-            modes.append(f"free:{vert.face}")
+            if np.linalg.norm(x[4:6] - finger[-1]) > 1e-9:  # a region passed through at a single point
+                modes.append(f"free:{vert.face}")
             go(x[4:6], box[-1], FREE)
         elif vert.kind == "push":
             x = points[v]

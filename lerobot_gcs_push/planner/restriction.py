@@ -22,6 +22,11 @@ class PathSolution:
     cost: float  # inf when the restriction is infeasible
     points: dict[int, np.ndarray]
     solve_time_s: float
+    accurate: bool = True  # False when Clarabel reports OPTIMAL_INACCURATE
+
+    def rank(self) -> tuple:
+        """Order for choosing among candidates: accurate solutions first, then cost."""
+        return (not self.accurate, self.cost)
 
 
 class Restriction:
@@ -65,7 +70,8 @@ class Restriction:
             return PathSolution(self.edges, self.vertices, np.inf, {}, elapsed)
         pts = {v: np.asarray(x.value, float) for v, x in self.x.items()
                if isinstance(x, cp.Variable)}
-        return PathSolution(self.edges, self.vertices, float(self.problem.value), pts, elapsed)
+        return PathSolution(self.edges, self.vertices, float(self.problem.value), pts, elapsed,
+                            accurate=self.problem.status == cp.OPTIMAL)
 
 
 class RestrictionCache:
@@ -93,6 +99,6 @@ def brute_force(graph: ModeGraph, src, goal, cache: RestrictionCache | None = No
     best = None
     for path in graph.simple_paths():
         sol = cache.solve(path, src, goal)
-        if best is None or sol.cost < best.cost:
+        if best is None or sol.rank() < best.rank():
             best = sol
     return best

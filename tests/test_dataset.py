@@ -1,0 +1,149 @@
+"""The demonstration generator: file contents against the planner, the env and the images."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lerobot_gcs_push.dataset import FEATURE_KEYS, GenerateConfig, generate, read_episode_metadata
+from lerobot_gcs_push.scene import Scene
+
+N = 3
+
+
+def _cfg(tmp: Path, name: str, **kw) -> GenerateConfig:
+    return GenerateConfig(**{"episodes": N, "repo_id": f"local/{name}", "root": str(tmp / name), "workers": 1, "progress": False, **kw})
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """3 episodes written to the default place: $HF_LEROBOT_HOME/<repo_id>."""
+    cfg = GenerateConfig(episodes=N, repo_id="local/test_gcs_push", workers=1, progress=False)
+    report = generate(cfg)
+    return cfg, report
+
+
+def _load(repo_id, root=None, **kw):
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    return LeRobotDataset(repo_id, root=root, video_backend="pyav", **kw)
+
+
+def _episodes(ds):
+    starts = np.asarray(ds.meta.episodes["dataset_from_index"])
+    ends = np.asarray(ds.meta.episodes["dataset_to_index"])
+    return list(zip(starts, ends))
+
+
+def test_dataset_loads_from_the_lerobot_cache_with_the_right_features(reference):
+    cfg, report = reference
+    assert Path(report.root) == Path(os.environ["HF_LEROBOT_HOME"]) / cfg.repo_id
+    ds = _load(cfg.repo_id)  # no root: LeRobot's own cache lookup, offline
+    assert ds.meta.total_episodes == N and ds.fps == 10
+    assert set(FEATURE_KEYS) <= set(ds.meta.features)
+    assert ds.meta.features["observation.image"]["dtype"] == "image"
+    for key in ("observation.state", "observation.environment_state", "action"):
+        assert ds.meta.features[key]["dtype"] == "float32" and tuple(ds.meta.features[key]["shape"]) == (2,)
+    item = ds[0]
+    assert tuple(item["observation.image"].shape) == (3, 96, 96)
+    assert item["task"] == "Push the red box onto the green goal."
+    meta = read_episode_metadata(report.root)
+    assert [m["num_frames"] for m in meta] == [e - s for s, e in _episodes(ds)]
+    assert all(m["success"] for m in meta) and ds.meta.total_frames == report.frames
+
+
+def test_frames_match_the_planner_and_the_initial_condition(reference):
+    """Actions are the expert's commands, recomputed here from an independent planner call; the first
+    state is the initial condition; the box sits in the image where the state says."""
+    from lerobot_gcs_push.planner import GcsPlanner, Speeds
+    from lerobot_gcs_push.sim import PushSim
+
+    cfg, report = reference
+    ds = _load(cfg.repo_id)
+    scene = Scene()
+    planner = GcsPlanner(scene)
+    sim = PushSim(scene, render_size=None)
+    for (start, end), meta in zip(_episodes(ds), read_episode_metadata(report.root)):
+        frames = [ds[int(i)] for i in range(start, end)]
+        actions = np.stack([f["action"].numpy() for f in frames])
+        plan = planner.plan(meta["box_initial"], meta["finger_initial"])
+        assert plan.cost == pytest.approx(meta["plan_cost"], rel=1e-6)
+        cmds = plan.schedule(cfg.fps, Speeds(), scene.push_lag_s).commands
+        n = min(len(cmds), len(actions))
+        np.testing.assert_allclose(actions[:n], cmds[:n], atol=1e-5)
+        assert np.all(actions[n:] == actions[n - 1])  # then it holds the final command
+        first = frames[0]
+        np.testing.assert_allclose(first["observation.state"].numpy(), meta["finger_initial"], atol=1e-5)
+        np.testing.assert_allclose(first["observation.environment_state"].numpy(), meta["box_initial"], atol=1e-5)
+        # Red pixels: their centroid is where the box's recorded position projects.
+        img = (first["observation.image"].numpy().transpose(1, 2, 0) * 255).astype(int)
+        red = (img[..., 0] > 150) & (img[..., 1] < 90) & (img[..., 2] < 90)
+        assert red.sum() > 20
+        rows, cols = np.nonzero(red)
+        expected = sim.world_to_pixel(meta["box_initial"])
+        assert np.hypot(rows.mean() - expected[0], cols.mean() - expected[1]) < 1.5
+        # The final frame is within reach of success (the env ends episodes on success).
+        last_box = frames[-1]["observation.environment_state"].numpy()
+        assert np.linalg.norm(last_box - scene.goal_array) < 0.1 + 0.05
+
+
+def test_refuses_to_overwrite_without_a_flag(reference):
+    cfg, _ = reference
+    with pytest.raises(FileExistsError, match="--overwrite"):
+        generate(cfg)
+
+
+def _digest(root: Path) -> str:
+    """Hash of every stored value, PNG bytes included. (The parquet files' footers also carry a random
+    fingerprint from the `datasets` library, so whole-file bytes cannot match across runs.)"""
+    import pyarrow.parquet as pq
+
+    h = hashlib.sha256()
+    for f in sorted((root / "data").rglob("*.parquet")):
+        table = pq.read_table(f)
+        for name in table.schema.names:
+            h.update(name.encode())
+            h.update(repr(table.column(name).to_pylist()).encode())
+    return h.hexdigest()
+
+
+def test_worker_count_and_interruption_do_not_change_the_dataset(tmp_path, reference):
+    """workers=2 writes the same data as workers=1; a run killed midway and resumed equals both."""
+    _, report = reference
+    two = _cfg(tmp_path, "two", workers=2)
+    generate(two)
+    assert _digest(Path(two.root)) == _digest(Path(report.root))
+
+    root = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "lerobot_gcs_push.cli", "generate", "--episodes", str(N), "--repo-id",
+           "local/killed", "--root", str(root), "--workers", "1"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    work = root.with_name(root.name + ".work")
+    deadline = time.time() + 300
+    while not list(work.glob("episode_*.npz")) and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.2)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not root.exists(), "a killed run must leave no dataset in the cache"
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    assert res.returncode != 0 and "--resume" in res.stderr
+    subprocess.run(cmd + ["--resume"], check=True, capture_output=True)
+    assert _digest(root) == _digest(Path(report.root))
+    assert not work.exists()
+
+
+def test_bad_settings_are_named(tmp_path):
+    with pytest.raises(ValueError, match="unknown expert"):
+        GenerateConfig(expert="human")
+    with pytest.raises(ValueError, match="not both"):
+        GenerateConfig(overwrite=True, resume=True)
+    with pytest.raises(ValueError, match="owner/name"):
+        GenerateConfig(repo_id="nodash")
