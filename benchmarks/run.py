@@ -1,0 +1,77 @@
+"""`make bench`: every benchmark in one run, printed and saved to results/bench.json.
+
+    python -m benchmarks.run [--only env,planner,dataset,train] [--quick]
+
+Medians and ratios come from one run on this machine; compare numbers from the same run only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("HF_HUB_OFFLINE", "1")
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+TARGETS = {
+    "env.env_steps_per_s": (">=", 300.0),
+    "planner.relaxation_median_s": ("<=", 0.050),
+    "planner.micp_median_s": ("<=", 1.0),
+    "planner.relaxation_within_1pct_frac": (">=", 0.95),
+    "dataset.demonstrations_per_min": (">=", 50.0),
+}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--only", default="env,planner,dataset,train")
+    ap.add_argument("--quick", action="store_true", help="smaller samples (a smoke run, not for reporting)")
+    ap.add_argument("--out", default="results/bench.json")
+    args = ap.parse_args(argv)
+    only = args.only.split(",")
+    results: dict[str, dict] = {}
+    for name in only:
+        t0 = time.perf_counter()
+        if name == "env":
+            from benchmarks import env_bench as mod
+            res = mod.run()
+        elif name == "planner":
+            from benchmarks import planner_bench as mod
+            res = mod.run(n=10 if args.quick else 40)
+        elif name == "dataset":
+            from benchmarks import dataset_bench as mod
+            res = mod.run(episodes=10 if args.quick else 100)
+        elif name == "train":
+            from benchmarks import train_bench as mod
+            res = mod.run()
+        else:
+            raise SystemExit(f"unknown benchmark {name!r}")
+        results[name] = res
+        print(f"\n== {name} ({time.perf_counter() - t0:.0f} s)")
+        for k, v in res.items():
+            target = TARGETS.get(f"{name}.{k}")
+            mark = ""
+            if target and isinstance(v, (int, float)):
+                op, bound = target
+                ok = v >= bound if op == ">=" else v <= bound
+                mark = f"   target {op} {bound:g}: {'met' if ok else 'MISSED'}"
+            print(f"  {k:45s} {v:12.4g}{mark}" if isinstance(v, (int, float)) else f"  {k:45s} {v}")
+        sys.stdout.flush()
+    meta = {"machine": platform.platform(), "cpus": os.cpu_count(), "load_avg_1m": os.getloadavg()[0],
+            "time": time.strftime("%Y-%m-%d %H:%M:%S"), "quick": args.quick}
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    old = json.loads(Path(args.out).read_text()) if Path(args.out).exists() else {}
+    old.update(results)
+    old["_meta"] = meta
+    Path(args.out).write_text(json.dumps(old, indent=1))
+    print(f"\nsaved to {args.out} (load average at the end: {meta['load_avg_1m']:.1f})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
