@@ -8,11 +8,15 @@ steps after warm-up:
   - `<preset>_train_samples_per_s`: batch_size / mean step time (wall clock, batch wait included);
   - `<preset>_dataloader_share`: time waiting for the next batch (plus preprocessing, as lerobot-train
     counts it) over the total step time;
-  - `<preset>_train_cpu_s_per_step`: this process's CPU time per step (all its threads; unlike the
-    wall clock it barely moves when other jobs share the cores);
+  - `<preset>_train_cpu_s_per_step`: this process's CPU time per step, all its threads (OpenMP's
+    default active waiting counts as CPU time);
   - `<preset>_inference_s_per_chunk`: `select_action` with an empty action queue, i.e. one full
     denoising of `horizon` actions (median), at batch size 1.
 The dataset is a tiny one generated in a temporary HF_LEROBOT_HOME (or `dataset_root`, if given).
+
+On a 2-core machine shared with other jobs, PyTorch's OpenMP threads spin while they wait and every
+step gets several times slower; set OMP_WAIT_POLICY=PASSIVE (or OMP_NUM_THREADS=1) before starting
+Python there. `omp_wait_policy` and the load averages are returned so a number can be judged.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ import os
 import statistics
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs" / "policy"
@@ -67,7 +72,7 @@ def _cycle(loader):
         yield from loader
 
 
-def bench_preset(preset: str, root: Path, warmup: int = 2, steps: int = 4, inference_reps: int = 3,
+def bench_preset(preset: str, root: Path, warmup: int = 1, steps: int = 3, inference_reps: int = 3,
                  batch_size: int | None = None, num_workers: int | None = None, **policy_overrides) -> dict:
     import torch
     from lerobot.policies.factory import make_policy, make_pre_post_processors
@@ -151,8 +156,10 @@ def run(presets=("cpu", "paper"), dataset_root: str | None = None, episodes: int
     from datasets.utils.logging import disable_progress_bar
 
     disable_progress_bar()
-    out = {"torch_threads": __import__("torch").get_num_threads(), "load_avg_1min": os.getloadavg()[0]}
-    with tempfile.TemporaryDirectory(prefix="gcs_push_train_bench_") as tmp:
+    out = {"torch_threads": __import__("torch").get_num_threads(), "cpu_count": os.cpu_count(),
+           "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY", ""), "load_avg_1min": os.getloadavg()[0]}
+    with tempfile.TemporaryDirectory(prefix="gcs_push_train_bench_") as tmp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # e.g. the DataLoader's "more workers than cores" for the paper preset
         root = Path(dataset_root) if dataset_root else _tiny_dataset(Path(tmp), episodes)
         for preset in presets:
             out.update(bench_preset(preset, root, **kwargs))
