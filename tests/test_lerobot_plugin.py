@@ -208,3 +208,27 @@ def test_lerobot_eval_cli_async_disturbances(checkpoint, lerobot_home, tmp_path)
          home=lerobot_home, cwd=tmp_path)
     overall = _eval_info(out)
     assert overall["n_episodes"] == 2 and 0.0 <= overall["pc_success"] <= 100.0
+
+
+@pytest.mark.slow
+def test_gcs_push_evaluate_runs_a_lerobot_checkpoint(checkpoint, tmp_path):
+    """Issue 6: a LeRobot checkpoint evaluates end to end through `gcs-push evaluate` (LeRobot's factory
+    and processors); whatever its success rate, its records must be complete and consistent."""
+    import numpy as np
+
+    from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate, read_runs
+
+    out = tmp_path / "eval"
+    summary = evaluate(EvaluateConfig(policies=[str(checkpoint)], num_initial_conditions=2, runs=1,
+                                      disturbances=True, timeout_s=3.0, output_dir=str(out), videos=0))
+    recs = read_runs(out / "runs.jsonl")
+    assert len(recs) == 4  # 2 ICs x (without, with disturbances)
+    assert {r["disturbances"] for r in recs} == {False, True}
+    for r in recs:
+        assert r["plan_time_s"] == 0.0 and r["run_time_s"] > 0
+        traj = np.load(out / r["trajectory"])
+        assert r["sim_time_s"] == pytest.approx((len(traj["finger"]) - 1) / 10, abs=1e-6)
+        np.testing.assert_allclose(traj["finger"][0], r["finger_initial"], atol=1e-6)
+        assert r["success"] == (r["final_distance"] <= 0.1)
+        assert r["success"] or r["sim_time_s"] == pytest.approx(3.0)
+    assert sum(v["runs"] for v in summary["variants"].values()) == 4
