@@ -49,7 +49,8 @@ class GcsPlanner:
             raise ValueError(f"unknown method {method!r}: choose one of {METHODS}")
         if method not in self._programs:
             t0 = time.perf_counter()
-            prog = GcsProgram(self.graph, integer=(method == "micp"))
+            micp = method == "micp"
+            prog = GcsProgram(self.graph, integer=micp, two_cycles=micp)  # cuts pay off only in SCIP (gcs.py)
             prog.compile()
             self.compile_time_s[method] = time.perf_counter() - t0
             self._programs[method] = prog
