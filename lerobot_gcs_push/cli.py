@@ -8,6 +8,8 @@ import os
 import sys
 import warnings
 
+from lerobot_gcs_push.scene import Scene
+
 os.environ.setdefault("HF_HUB_OFFLINE", "1")  # nothing here may reach the network unless asked to
 
 
@@ -172,7 +174,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--output-dir", required=True)
     e.add_argument("--device", default="cpu")
     e.add_argument("--workers", type=int, default=1)
-    e.add_argument("--timeout-s", type=float, default=500.0)
+    e.add_argument("--timeout-s", type=float, default=Scene.timeout_s)
     e.add_argument("--dataset", default=None, help="repo id (or path) of the training dataset, for Fig. 4")
     e.add_argument("--videos", type=int, default=2, help="rollout videos per policy")
     e.add_argument("--overwrite", action="store_true")

@@ -40,9 +40,9 @@ class GenerateConfig:
     method: str = "relaxation"
     sampler: str = "sobol"
     disturbances: bool = False
-    fps: int = 10
+    fps: int = Scene.fps
     image_size: int = 96
-    max_sim_time_s: float = 500.0
+    max_sim_time_s: float = Scene.timeout_s
     overwrite: bool = False
     resume: bool = False
     push_to_hub: bool = False

@@ -80,7 +80,7 @@ class DisturbanceSchedule:
 class GcsPushBoxEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
-    def __init__(self, obs_type: str = "pixels_agent_pos", fps: float = 10, max_sim_time_s: float = 500.0,
+    def __init__(self, obs_type: str = "pixels_agent_pos", fps: float = Scene.fps, max_sim_time_s: float = Scene.timeout_s,
                  disturbances: bool = False, image_size: int | tuple[int, int] = 96,
                  success_threshold: float | None = None, goal=None, render_mode: str | None = "rgb_array",
                  scene: Scene | None = None, sampler: str = "uniform",

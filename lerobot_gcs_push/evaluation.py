@@ -49,7 +49,7 @@ class EvaluateConfig:
     output_dir: str = "outputs/eval"
     device: str = "cpu"
     workers: int = 1
-    timeout_s: float = 500.0
+    timeout_s: float = Scene.timeout_s
     success_thresholds: tuple[float, float] = (0.1, 0.2)
     dataset: str | None = None
     videos: int = 2

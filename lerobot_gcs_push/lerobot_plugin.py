@@ -16,6 +16,7 @@ from lerobot.utils.constants import ACTION, OBS_IMAGE, OBS_STATE
 
 from lerobot_gcs_push.dataset import TASK
 from lerobot_gcs_push.env import GcsPushBoxEnv
+from lerobot_gcs_push.scene import Scene
 
 GYM_NAMESPACE = "gcs_push"
 
@@ -38,9 +39,9 @@ if f"{GYM_NAMESPACE}/GcsPushBox-v0" not in gym.registry:
 @dataclass
 class GcsPushEnvConfig(EnvConfig):
     task: str | None = "GcsPushBox-v0"
-    fps: int = 10
-    episode_length: int = 5000  # steps; 500 s of simulated time at 10 fps, the paper's timeout
-    success_threshold: float = 0.1  # m, box centre to goal
+    fps: int = Scene.fps
+    episode_length: int = round(Scene.timeout_s * Scene.fps)  # steps: the paper's 500 s timeout
+    success_threshold: float = Scene.success_threshold  # m, box centre to goal
     disturbances: bool = False  # the paper's random pushes on the box
     image_size: int = 96
     obs_type: str = "pixels_agent_pos"

@@ -57,6 +57,8 @@ class Scene:
     # Task.
     goal: tuple[float, float] = (0.0, 0.0)
     success_threshold: float = 0.1
+    timeout_s: float = 500.0  # simulated seconds before an episode counts as failed (paper IV-B)
+    fps: int = 10  # env steps (policy decisions) per simulated second
     # Initial-condition distribution (paper III-E) and the finger's commandable region.
     box_init_half_width: float = 4.5
     finger_init_half_width: float = 4.7
