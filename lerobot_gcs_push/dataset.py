@@ -13,11 +13,15 @@ depend on `workers`.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
 import multiprocessing as mp
 import os
 import shutil
 import time
+from collections import deque
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -231,9 +235,11 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
     failures = 0
     try:
         if cfg.workers > 1:
-            ctx = mp.get_context("forkserver")
-            pool = ctx.Pool(cfg.workers, initializer=_init_worker, initargs=(asdict(cfg), str(work.path)))
-            fresh = pool.imap(_run_episode, todo)
+            # concurrent.futures, not multiprocessing.Pool: a Pool silently replaces a worker that dies
+            # (a crash in the renderer, the OOM killer) and then waits forever for its episode.
+            pool = ProcessPoolExecutor(cfg.workers, mp_context=mp.get_context("forkserver"),
+                                       initializer=_init_worker, initargs=(asdict(cfg), str(work.path)))
+            fresh = _in_order(pool, todo, window=2 * cfg.workers, work=work.path)
         else:
             _init_worker(asdict(cfg), str(work.path))
             fresh = map(_run_episode, todo)
@@ -254,8 +260,7 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
                                f"{max_attempts} initial conditions; their records are in {work.path}")
     finally:
         if pool is not None:
-            pool.terminate()
-            pool.join()
+            pool.shutdown(wait=True, cancel_futures=True)
         bar.close()
     attempts = index + 1
     writer.finish()
@@ -266,6 +271,23 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
     if cfg.push_to_hub:
         push_to_hub(cfg.repo_id, root)
     return report
+
+
+def _in_order(pool: ProcessPoolExecutor, jobs, window: int, work: Path):
+    """Episode results in job order, with at most `window` episodes in flight, so that stopping early
+    (enough successes) wastes little work."""
+    jobs = iter(jobs)
+    pending = deque(pool.submit(_run_episode, job) for job in itertools.islice(jobs, window))
+    while pending:
+        try:
+            result = pending.popleft().result()
+        except BrokenProcessPool as e:
+            raise RuntimeError(f"a demonstration worker died ({e}); the finished episodes are kept in {work}: "
+                               f"run again with --resume") from e
+        job = next(jobs, None)
+        if job is not None:
+            pending.append(pool.submit(_run_episode, job))
+        yield result
 
 
 def _progress(cfg: GenerateConfig):
