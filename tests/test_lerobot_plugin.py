@@ -136,7 +136,9 @@ def test_policy_presets(path):
     policy = draccus.decode(PreTrainedConfig, raw["policy"])
     assert (policy.n_obs_steps, policy.horizon, policy.n_action_steps) == (1, 16, 8)
     assert policy.drop_n_last_frames == policy.horizon - policy.n_action_steps - policy.n_obs_steps + 1
-    assert policy.crop_shape == (84, 84) and policy.pretrained_backbone_weights is None
+    # The paper crops 84x84 at random; the CPU preset sees the whole fixed view (see configs/README.md).
+    assert policy.crop_shape == ((84, 84) if path == PAPER_PRESET else None)
+    assert policy.pretrained_backbone_weights is None
     assert not policy.push_to_hub and policy.use_group_norm and policy.device == "cpu"
     # The env has no box position, so the policy must not take observation.environment_state.
     assert set(policy.input_features) == {"observation.image", "observation.state"}
