@@ -6,4 +6,4 @@ set -euo pipefail
 run_dir=$1 train_dir=$2 step=$3
 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 HF_HUB_OFFLINE=1 .venv/bin/gcs-push evaluate \
     --policy "$train_dir/checkpoints/$step/pretrained_model" --num-initial-conditions 8 --runs 1 \
-    --timeout-s 60 --workers 1 --output-dir "$run_dir/learning_curve/step_$step"
+    --timeout-s 60 --workers 1 --videos 0 --output-dir "$run_dir/learning_curve/step_$step"
