@@ -1,6 +1,6 @@
 """Summarise a CPU training run: the loss curve from the lerobot-train log and success per checkpoint
 from the `gcs-push evaluate` runs in <run dir>/learning_curve/step_*/. Writes learning_curve.{csv,png}
-and loss.csv into the run directory.
+and loss.csv into the run directory, with offline_error.csv (offline_error.py) in the plot if present.
 
     python results/train/summarize.py results/train/run2_nocrop outputs/train/cpu_run_v2.log [--log-freq 50]
 """
@@ -42,7 +42,21 @@ with open(args.run_dir / "learning_curve.csv", "w", newline="") as f:
 with open(args.run_dir / "loss.csv", "w") as f:
     f.write("step,loss\n" + "".join(f"{s},{v}\n" for s, v in loss))
 
-fig, (a, b) = plt.subplots(1, 2, figsize=(9, 3.5))
+errors = []
+if (args.run_dir / "offline_error.csv").exists():  # written by offline_error.py
+    with open(args.run_dir / "offline_error.csv") as f:
+        errors = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+
+fig, (a, c, b) = plt.subplots(1, 3, figsize=(13, 3.5))
+if errors:
+    c.plot([r["step"] for r in errors], [r["action_error_m_mean"] for r in errors], "o-", label="policy")
+    c.axhline(errors[0]["hold_baseline_m"], color="grey", ls=":", label="hold still")
+    c.axhline(0.1, color="green", ls="--", label="success radius")
+    c.legend()
+c.set_ylim(bottom=0)
+c.set_xlabel("training step")
+c.set_ylabel("m")
+c.set_title("action error on demo frames (8 actions)")
 if loss:
     a.plot(*zip(*loss))
 a.set_yscale("log")
