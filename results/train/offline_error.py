@@ -46,8 +46,15 @@ targets = [np.stack([ds[int(i) + k]["action"].numpy() for k in range(EXECUTED)])
 hold = float(np.mean([np.linalg.norm(t - it["observation.state"].numpy(), axis=1).mean()
                       for t, it in zip(targets, items)]))
 
+out = args.run_dir / "offline_error.csv"
 rows = []
+if out.exists():  # checkpoints already measured are kept, not measured again
+    with open(out) as f:
+        rows = [{k: (int(v) if k in ("step", "frames") else float(v)) for k, v in r.items()} for r in csv.DictReader(f)]
+done = {r["step"] for r in rows}
 for ckpt in sorted((args.train_dir / "checkpoints").glob("[0-9]*")):
+    if int(ckpt.name) in done:
+        continue
     learned = LearnedPolicy(str(ckpt / "pretrained_model"), "cpu")
     errors = []
     for n, (item, target) in enumerate(zip(items, targets)):
@@ -63,7 +70,8 @@ for ckpt in sorted((args.train_dir / "checkpoints").glob("[0-9]*")):
     rows.append({"step": int(ckpt.name), "frames": len(errors), "action_error_m_mean": float(np.mean(errors)),
                  "action_error_m_median": float(np.median(errors)), "hold_baseline_m": hold})
     print(rows[-1], flush=True)
-with open(args.run_dir / "offline_error.csv", "w", newline="") as f:
+rows.sort(key=lambda r: r["step"])
+with open(out, "w", newline="") as f:
     w = csv.DictWriter(f, fieldnames=list(rows[0]))
     w.writeheader()
     w.writerows(rows)
