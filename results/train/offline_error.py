@@ -8,7 +8,7 @@ their episode), each checkpoint predicts a chunk from that frame's image and fin
 mean distance in metres between the 8 executed actions and the expert's. Baseline: holding the finger
 still (action = current finger position). Writes <run dir>/offline_error.csv.
 
-    python results/train/offline_error.py results/train/run2_nocrop outputs/train/gcs_push_diffusion_cpu_v2
+    .venv/bin/python results/train/offline_error.py results/train/run2_nocrop outputs/train/gcs_push_diffusion_cpu_v2
 """
 
 import argparse

@@ -2,7 +2,7 @@
 from the `gcs-push evaluate` runs in <run dir>/learning_curve/step_*/. Writes learning_curve.{csv,png}
 and loss.csv into the run directory, with offline_error.csv (offline_error.py) in the plot if present.
 
-    python results/train/summarize.py results/train/run2_nocrop outputs/train/cpu_run_v2.log [--log-freq 50]
+    .venv/bin/python results/train/summarize.py results/train/run2_nocrop outputs/train/cpu_run_v2.log [--log-freq 50]
 """
 
 import argparse
