@@ -26,6 +26,10 @@ parser.add_argument("run_dir", type=Path)
 parser.add_argument("train_dir", type=Path)
 parser.add_argument("--frames", type=int, default=100)
 parser.add_argument("--repo-id", default="local/gcs_push_box")
+# Frames are drawn from the first N episodes only: the datasets share their first episodes (same Sobol
+# sequence and episode seeds), so --first-episodes 200 on a larger dataset draws the same 100 frames as
+# the default 200-demonstration dataset, and errors stay comparable across runs.
+parser.add_argument("--first-episodes", type=int, default=None)
 args = parser.parse_args()
 
 import torch  # noqa: E402
@@ -36,8 +40,8 @@ from lerobot_gcs_push.evaluation import LearnedPolicy  # noqa: E402
 
 torch.set_num_threads(1)
 ds = LeRobotDataset(args.repo_id)
-ends = np.asarray(ds.meta.episodes["dataset_to_index"])
-starts = np.asarray(ds.meta.episodes["dataset_from_index"])
+ends = np.asarray(ds.meta.episodes["dataset_to_index"])[: args.first_episodes]
+starts = np.asarray(ds.meta.episodes["dataset_from_index"])[: args.first_episodes]
 valid = np.concatenate([np.arange(s, e - EXECUTED) for s, e in zip(starts, ends)])
 rng = np.random.default_rng(0)
 frames = np.sort(rng.choice(valid, size=args.frames, replace=False))
