@@ -73,7 +73,10 @@ def _cycle(loader):
 
 
 def bench_preset(preset: str, root: Path, warmup: int = 1, steps: int = 3, inference_reps: int = 3,
-                 batch_size: int | None = None, num_workers: int | None = None, **policy_overrides) -> dict:
+                 batch_size: int | None = None, num_workers: int | None = None, amp: bool = False,
+                 **policy_overrides) -> dict:
+    """amp=True measures what `lerobot-train --policy.use_amp=true` does on CPU (bf16 autocast of the
+    forward pass, fp32 weights); its keys are prefixed `<preset>_bf16_`."""
     import torch
     from lerobot.policies.factory import make_policy, make_pre_post_processors
 
@@ -104,7 +107,8 @@ def bench_preset(preset: str, root: Path, warmup: int = 1, steps: int = 3, infer
                 batch[key] = batch[key].to(torch.float32) / 255.0
         batch = pre(batch)
         t1 = time.perf_counter()
-        loss, _ = policy.forward(batch)
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=amp):
+            loss, _ = policy.forward(batch)
         loss.backward()
         torch.nn.utils.clip_grad_norm_(policy.parameters(), clip)
         optimizer.step()
@@ -130,6 +134,7 @@ def bench_preset(preset: str, root: Path, warmup: int = 1, steps: int = 3, infer
                 latencies.append(time.perf_counter() - t0)
 
     step_s = statistics.fmean(total)
+    preset = f"{preset}_bf16" if amp else preset
     return {
         f"{preset}_batch_size": batch_size,
         f"{preset}_num_workers": num_workers,
