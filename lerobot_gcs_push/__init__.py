@@ -1,7 +1,6 @@
 """lerobot-gcs-push: optimal GCS pushing demonstrations for LeRobot.
 
-Importing the package registers the Gymnasium env `GcsPushBox-v0` (and `gym_gcs_push/GcsPushBox-v0`,
-the id LeRobot's env factory asks for). Drake loads only when an env is made.
+Importing the package registers the Gymnasium env `GcsPushBox-v0`. Drake loads only when an env is made.
 """
 
 from lerobot_gcs_push.registration import register_envs as _register_envs

@@ -8,7 +8,7 @@ import os
 import sys
 import warnings
 
-from lerobot_gcs_push.scene import Scene
+from lerobot_gcs_push.scene import SAMPLERS, Scene, load_initial_conditions
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")  # nothing here may reach the network unless asked to
 
@@ -17,31 +17,6 @@ def _pair(name):
     def parse(values):
         return [float(v) for v in values]
     return parse
-
-
-def load_initial_conditions(path: str) -> list[dict]:
-    """A JSON list of {"box": [x, y], "finger": [x, y]} (other keys ignored), with clear errors."""
-    try:
-        with open(path) as f:
-            data = json.load(f)
-    except FileNotFoundError:
-        raise SystemExit(f"error: initial-conditions file {path!r} does not exist") from None
-    except json.JSONDecodeError as err:
-        raise SystemExit(f"error: initial-conditions file {path!r} is not valid JSON: {err}") from None
-    if not isinstance(data, list):
-        raise SystemExit(f"error: {path!r} must hold a JSON list of {{\"box\": [x, y], \"finger\": [x, y]}}")
-    out = []
-    for i, item in enumerate(data):
-        try:
-            box, finger = item["box"], item["finger"]
-            box, finger = [float(v) for v in box], [float(v) for v in finger]
-            if len(box) != 2 or len(finger) != 2:
-                raise ValueError
-        except (KeyError, TypeError, ValueError):
-            raise SystemExit(f"error: {path!r} entry {i} must be {{\"box\": [x, y], \"finger\": [x, y]}}, "
-                             f"got {item!r}") from None
-        out.append({"box": box, "finger": finger})
-    return out
 
 
 def cmd_plan(args) -> int:
@@ -81,6 +56,7 @@ def cmd_generate(args) -> int:
         cfg = GenerateConfig(episodes=args.episodes, repo_id=args.repo_id, root=args.root, seed=args.seed,
                              workers=args.workers, expert=args.expert, method=args.method, sampler=args.sampler,
                              disturbances=args.disturbances, overwrite=args.overwrite, resume=args.resume,
+                             frames=args.frames,
                              push_to_hub=args.push_to_hub)
         report = generate(cfg)
     except (ValueError, FileExistsError, RuntimeError) as err:
@@ -97,6 +73,7 @@ def cmd_evaluate(args) -> int:
     try:
         cfg = EvaluateConfig(policies=args.policy, initial_conditions=args.initial_conditions,
                              num_initial_conditions=args.num_initial_conditions, seed=args.seed, runs=args.runs,
+                             sampler=args.sampler, large_regret_m=args.large_regret_m,
                              disturbances=args.disturbances, output_dir=args.output_dir, device=args.device,
                              workers=args.workers, timeout_s=args.timeout_s, dataset=args.dataset,
                              videos=args.videos, overwrite=args.overwrite)
@@ -108,10 +85,28 @@ def cmd_evaluate(args) -> int:
     return 0
 
 
+def cmd_collect(args) -> int:
+    from lerobot_gcs_push.active import CollectConfig, collect
+
+    cfg = CollectConfig(rollouts=args.rollouts, repo_id=args.repo_id, root=args.root,
+                        large_regret_m=args.large_regret_m, failed_regret_m=args.failed_regret_m,
+                        keep_fraction=args.keep_fraction,
+                        max_per_run=args.max_per_run, seed=args.seed, workers=args.workers,
+                        overwrite=args.overwrite, resume=args.resume)
+    report, states = collect(cfg)
+    print(f"labelled {report.episodes} of {len(states)} branch states ({report.frames} frames) into {report.root} "
+          f"in {report.wall_time_s:.1f} s; {report.failures} expert rollout(s) failed and were left out")
+    return 0
+
+
 def cmd_demo(args) -> int:
-    """The main job: demonstrations, the GCS experts under the paper's protocol, tables and figures."""
+    """The main job: demonstrations, the GCS experts under the paper's protocol, and the shipped policy
+    beside GCS on a few initial conditions, with a side-by-side video."""
+    from pathlib import Path
+
     from lerobot_gcs_push.dataset import GenerateConfig, dataset_root, generate
-    from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate
+    from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate, variant_label, video_path
+    from lerobot_gcs_push.figures import side_by_side
 
     gen = GenerateConfig(episodes=args.episodes, repo_id=args.repo_id, workers=args.workers,
                          resume=not args.overwrite, overwrite=args.overwrite)
@@ -122,14 +117,28 @@ def cmd_demo(args) -> int:
         report = generate(gen)
         print(f"wrote {report.episodes} demonstrations ({report.frames} frames) to {report.root} in "
               f"{report.wall_time_s:.1f} s")
-    summary = evaluate(EvaluateConfig(policies=["gcs-open-loop", "gcs-closed-loop"],
+    out = Path(args.output_dir)
+    experts = evaluate(EvaluateConfig(policies=["gcs-open-loop", "gcs-closed-loop"],
                                       num_initial_conditions=args.num_initial_conditions, runs=args.runs,
-                                      disturbances=True, output_dir=args.output_dir, workers=args.workers,
+                                      disturbances=True, output_dir=str(out / "experts"), workers=args.workers,
                                       dataset=args.repo_id))
-    print(summary["tables_md"])
-    print(f"\ndataset:  {root}")
-    print(f"report:   {args.output_dir}/tables.md and figures in {args.output_dir}/")
-    print("train a policy on it (CPU preset):\n"
+    print(experts["tables_md"])
+    policy_dir = out / "policy"
+    if args.policy:
+        cfg = EvaluateConfig(policies=["gcs-open-loop", args.policy], num_initial_conditions=args.policy_ics,
+                             runs=1, output_dir=str(policy_dir), workers=args.workers, timeout_s=60.0,
+                             videos=args.policy_ics)
+        print(evaluate(cfg)["tables_md"])
+        labels = [variant_label(p, False) for p in cfg.policies]
+        for i in range(args.policy_ics):
+            clips = [video_path(policy_dir, label, i) for label in labels]
+            side_by_side(clips, ["GCS", "diffusion policy"], policy_dir / f"side_by_side_ic{i:03d}.mp4",
+                         gif=policy_dir / f"side_by_side_ic{i:03d}.gif" if i == 0 else None)
+    print(f"\ndataset:        {root}")
+    print(f"GCS experts:    {out / 'experts'}/tables.md and figures beside it")
+    if args.policy:
+        print(f"learned policy: {policy_dir}/tables.md; watch {policy_dir}/side_by_side_ic000.mp4")
+    print("train a policy on the dataset (CPU preset):\n"
           "  .venv/bin/lerobot-train --config_path=configs/policy/diffusion_cpu.json")
     return 0
 
@@ -155,8 +164,9 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--workers", type=int, default=2)
     g.add_argument("--expert", choices=["open-loop", "closed-loop"], default="open-loop")
     g.add_argument("--method", choices=["relaxation", "micp"], default="relaxation")
-    g.add_argument("--sampler", choices=["sobol", "uniform"], default="sobol")
+    g.add_argument("--sampler", choices=list(SAMPLERS), default="sobol")
     g.add_argument("--disturbances", action="store_true")
+    g.add_argument("--frames", type=int, default=None, help="stop once this many frames are written")
     mode = g.add_mutually_exclusive_group()
     mode.add_argument("--overwrite", action="store_true")
     mode.add_argument("--resume", action="store_true")
@@ -169,6 +179,11 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--initial-conditions", metavar="FILE.json")
     e.add_argument("--num-initial-conditions", type=int, default=20)
     e.add_argument("--seed", type=int, default=1000)
+    e.add_argument("--sampler", choices=list(SAMPLERS), default="uniform",
+                   help="initial conditions: uniform (the paper's), sobol, or hard (configurations a cloned "
+                        "policy gets wrong)")
+    e.add_argument("--large-regret-m", type=float, default=0.5,
+                   help="a chunk whose regret exceeds this counts as a mistake")
     e.add_argument("--runs", type=int, default=5)
     e.add_argument("--disturbances", action="store_true")
     e.add_argument("--output-dir", required=True)
@@ -180,6 +195,22 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--overwrite", action="store_true")
     e.set_defaults(func=cmd_evaluate)
 
+    c = sub.add_parser("collect", help="active data: label the states a policy visited with the GCS expert")
+    c.add_argument("--rollouts", action="append", required=True, metavar="DIR",
+                   help="a `gcs-push evaluate` output folder of the policy (repeat)")
+    c.add_argument("--repo-id", default="local/gcs_push_active")
+    c.add_argument("--root", default=None, help="default: $HF_LEROBOT_HOME/<repo-id>")
+    c.add_argument("--large-regret-m", type=float, default=0.5, help="branch from chunks above this regret")
+    c.add_argument("--failed-regret-m", type=float, default=0.25, help="the same, in a failed rollout")
+    c.add_argument("--keep-fraction", type=float, default=0.05, help="fraction of the other chunk starts kept")
+    c.add_argument("--max-per-run", type=int, default=12, help="branch states per rollout at most")
+    c.add_argument("--seed", type=int, default=0)
+    c.add_argument("--workers", type=int, default=2)
+    cm = c.add_mutually_exclusive_group()
+    cm.add_argument("--overwrite", action="store_true")
+    cm.add_argument("--resume", action="store_true")
+    c.set_defaults(func=cmd_collect)
+
     d = sub.add_parser("demo", help="the main job on its defaults")
     d.add_argument("--episodes", type=int, default=100)
     d.add_argument("--repo-id", default="local/gcs_push_box")
@@ -187,6 +218,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--num-initial-conditions", type=int, default=20)
     d.add_argument("--runs", type=int, default=5)
     d.add_argument("--output-dir", default="outputs/demo")
+    d.add_argument("--policy", default="policies/diffusion_cpu",
+                   help="a LeRobot pretrained_model directory to show beside GCS ('' to skip)")
+    d.add_argument("--policy-ics", type=int, default=3, help="initial conditions for the policy beside GCS")
     d.add_argument("--overwrite", action="store_true")
     d.set_defaults(func=cmd_demo)
     return p
@@ -195,7 +229,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     warnings.filterwarnings("ignore", message=".*GcsPushBox-v0 not registered.*")
     args = build_parser().parse_args(argv)
-    return args.func(args)
+    try:
+        return args.func(args)
+    except (ValueError, FileNotFoundError, FileExistsError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -27,9 +27,15 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_gcs_push.scene import Scene, sample_initial_conditions
+from lerobot_gcs_push.scene import (
+    TASK,
+    Scene,
+    check_sampler,
+    episode_seed,
+    load_initial_conditions,
+    sample_initial_conditions,
+)
 
-TASK = "Push the red box onto the green goal."
 EPISODES_META = "meta/gcs_push_episodes.jsonl"
 FEATURE_KEYS = ("observation.image", "observation.state", "observation.environment_state", "action")
 
@@ -44,6 +50,10 @@ class GenerateConfig:
     expert: str = "open-loop"
     method: str = "relaxation"
     sampler: str = "sobol"
+    # A JSON list of {"box", "finger"} to use instead of the sampler (e.g. the policy states that
+    # `gcs-push collect` picked); then every entry is tried once, and failures are left out.
+    initial_conditions: str | None = None
+    frames: int | None = None  # stop once this many frames are written (an equal-cost control)
     disturbances: bool = False
     fps: int = Scene.fps
     image_size: int = 96
@@ -67,8 +77,9 @@ class GenerateConfig:
 
         if self.expert not in EXPERTS:
             raise ValueError(f"unknown expert {self.expert!r}: choose one of {EXPERTS}")
-        if self.sampler not in ("sobol", "uniform"):
-            raise ValueError(f"unknown sampler {self.sampler!r}: choose 'sobol' or 'uniform'")
+        check_sampler(self.sampler)
+        if self.frames is not None and self.frames < 1:
+            raise ValueError(f"frames must be >= 1, got {self.frames}")
 
 
 def lerobot_home() -> Path:
@@ -92,10 +103,6 @@ def features(image_size: int) -> dict:
         "observation.environment_state": {"dtype": "float32", "shape": (2,), "names": ["box_x", "box_y"]},
         "action": {"dtype": "float32", "shape": (2,), "names": ["finger_target_x", "finger_target_y"]},
     }
-
-
-def episode_seed(seed: int, index: int) -> int:
-    return int(np.random.SeedSequence([seed, index]).generate_state(1)[0])
 
 
 # --- one episode, in a worker process ------------------------------------------------------------
@@ -225,9 +232,14 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
 
     t0 = time.perf_counter()
     done = work.done()
-    max_attempts = int(np.ceil(cfg.episodes * cfg.max_attempts_factor)) + 10
-    ics = sample_initial_conditions(scene, max_attempts, seed=cfg.seed, sampler=cfg.sampler)
-    todo = ((i, ics[i].to_json()) for i in range(max_attempts) if i not in done)
+    if cfg.initial_conditions:
+        ics = [{"box": ic["box"], "finger": ic["finger"]} for ic in load_initial_conditions(cfg.initial_conditions)]
+        max_attempts = len(ics)
+    else:
+        max_attempts = int(np.ceil(cfg.episodes * cfg.max_attempts_factor)) + 10
+        ics = [ic.to_json() for ic in sample_initial_conditions(scene, max_attempts, seed=cfg.seed,
+                                                                sampler=cfg.sampler)]
+    todo = ((i, ics[i]) for i in range(max_attempts) if i not in done)
 
     bar = _progress(cfg)
     writer = _Writer(cfg, root)
@@ -253,10 +265,12 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
                 continue
             writer.add(meta, work.load_arrays(index))
             bar.update(1)
-            if writer.episodes == cfg.episodes:
+            if writer.episodes == cfg.episodes or (cfg.frames is not None and writer.frames >= cfg.frames):
                 break
         else:
-            raise RuntimeError(f"only {writer.episodes} of {cfg.episodes} episodes succeeded after "
+            # A given list is tried once and its failures are reported, not an error.
+            if not (cfg.initial_conditions and writer.episodes):
+                raise RuntimeError(f"only {writer.episodes} of {cfg.episodes} episodes succeeded after "
                                f"{max_attempts} initial conditions; their records are in {work.path}")
     finally:
         if pool is not None:

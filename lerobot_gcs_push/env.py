@@ -20,8 +20,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from lerobot_gcs_push.scene import Disturbances, Scene, sample_initial_conditions
-from lerobot_gcs_push.registration import ENV_IDS, register_envs  # noqa: F401  (re-exported)
+from lerobot_gcs_push.scene import TASK, Disturbances, Scene, check_sampler, sample_initial_conditions
+from lerobot_gcs_push.registration import ENV_ID, register_envs  # noqa: F401  (re-exported)
 from lerobot_gcs_push.sim import PushSim
 
 OBS_TYPES = ("pixels_agent_pos", "state")
@@ -79,6 +79,8 @@ class DisturbanceSchedule:
 
 class GcsPushBoxEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+    # lerobot-eval asks every sub-env for both (a missing attribute kills an AsyncVectorEnv worker).
+    task = task_description = TASK
 
     def __init__(self, obs_type: str = "pixels_agent_pos", fps: float = Scene.fps, max_sim_time_s: float = Scene.timeout_s,
                  disturbances: bool = False, image_size: int | tuple[int, int] = 96,
@@ -89,8 +91,7 @@ class GcsPushBoxEnv(gym.Env):
             raise ValueError(f"obs_type must be one of {OBS_TYPES}, got {obs_type!r}")
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be 'rgb_array' or None, got {render_mode!r}")
-        if sampler not in ("uniform", "sobol"):
-            raise ValueError(f"sampler must be 'uniform' or 'sobol', got {sampler!r}")
+        check_sampler(sampler)
         if not max_sim_time_s > 0:
             raise ValueError(f"max_sim_time_s must be positive, got {max_sim_time_s}")
         scene = scene if scene is not None else Scene()

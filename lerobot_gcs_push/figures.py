@@ -20,7 +20,8 @@ def _plt():
 
 
 def make_figures(cfg, out: Path, records: list[dict], ics: list[dict]) -> list[str]:
-    made = [fig6_success_map(cfg, out, records, ics), fig7_trajectories(cfg, out, records, ics)]
+    made = [fig6_success_map(cfg, out, records, ics), fig7_trajectories(cfg, out, records, ics),
+            fig_regret(cfg, out, records)]
     if cfg.dataset:
         made.append(fig4_dataset_initial_images(cfg.dataset, out / "fig4_training_initial_images.png"))
     return [str(p) for p in made if p is not None]
@@ -114,6 +115,70 @@ def fig7_trajectories(cfg, out: Path, records: list[dict], ics: list[dict], max_
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
+
+
+def fig_regret(cfg, out: Path, records: list[dict]) -> Path | None:
+    """Cumulative regret along each run, per policy: flat lines are optimal play; a step up is a mistake,
+    and where the first large one happens tells which phase (approach or push) the policy gets wrong."""
+    labels = [label for label in _variants(records) if any("regret_chunks" in r for r in records
+                                                           if r["label"] == label)]
+    if not labels:
+        return None
+    plt = _plt()
+    fig, axes = plt.subplots(1, len(labels), figsize=(4 * len(labels), 3.4), squeeze=False, sharey=True)
+    fps = Scene().fps
+    for ax, label in zip(axes[0], labels):
+        for r in (r for r in records if r["label"] == label and r.get("regret_chunks")):
+            ch = np.array(r["regret_chunks"], float)
+            t = np.r_[ch[:, 0], ch[-1, 0] + fps * 0.8] / fps
+            cum = np.r_[0.0, np.nancumsum(ch[:, 1])]
+            ax.plot(t, cum, color="tab:green" if r["success"] else "tab:red", lw=0.8, alpha=0.6)
+        ax.axhline(0, color="k", lw=0.5)
+        ax.set_title(label, fontsize=9)
+        ax.set_xlabel("simulated time (s)")
+    axes[0][0].set_ylabel("cumulative regret (m)")
+    fig.suptitle("regret against the GCS cost-to-go (green: success, red: failure)", fontsize=9)
+    fig.tight_layout()
+    path = out / "fig_regret.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def side_by_side(videos: list[Path], labels: list[str], out: Path, gif: Path | None = None,
+                 gif_every: int = 3) -> Path:
+    """One video of several rollouts from the same initial condition, side by side and in step (a run
+    that ends first holds its last frame), each under its label; optionally a GIF for the README."""
+    import av
+    import cv2
+
+    clips = []
+    for path in videos:
+        with av.open(str(path)) as container:
+            clips.append([f.to_ndarray(format="rgb24") for f in container.decode(video=0)])
+    if not clips or not all(clips):
+        raise ValueError(f"no frames in {videos}")
+    n = max(len(c) for c in clips)
+    frames = []
+    for k in range(n):
+        tiles = []
+        for clip, label in zip(clips, labels):
+            img = np.ascontiguousarray(clip[min(k, len(clip) - 1)])
+            done = k >= len(clip) - 1
+            cv2.putText(img, label + (" (done)" if done else ""), (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55,
+                        (0, 0, 0), 1, cv2.LINE_AA)
+            tiles.append(img)
+        frames.append(np.hstack(tiles))
+    from lerobot_gcs_push.evaluation import write_video
+
+    write_video(out, frames, Scene.fps)
+    if gif is not None:
+        from PIL import Image
+
+        small = [Image.fromarray(f).resize((f.shape[1] // 2, f.shape[0] // 2)) for f in frames[::gif_every]]
+        small[0].save(gif, save_all=True, append_images=small[1:], duration=int(1000 * gif_every / Scene.fps),
+                      loop=0, optimize=True)
+    return out
 
 
 def _rect(center, half, color, alpha):

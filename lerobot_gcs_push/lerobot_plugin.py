@@ -3,42 +3,24 @@
 LeRobot 0.6.1 finds it through the `lerobot_env_gcs_push` shim (imported for every installed
 distribution named `lerobot_env_*`), which imports this module.
 
-The gym id is registered at import time on purpose: lerobot-eval's async vector env builds each env
-in a forkserver worker that unpickles this config (and so imports this module) before `gym.make`.
+The env config names the package's one gym id, `GcsPushBox-v0`: lerobot-eval's async vector env builds
+each env in a forkserver worker that unpickles this config, which imports the package and so registers it.
 """
 
 from dataclasses import dataclass, field
 
-import gymnasium as gym
 from lerobot.configs import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
 from lerobot.utils.constants import ACTION, OBS_IMAGE, OBS_STATE
 
-from lerobot_gcs_push.dataset import TASK
-from lerobot_gcs_push.env import GcsPushBoxEnv
+from lerobot_gcs_push.registration import ENV_ID
 from lerobot_gcs_push.scene import Scene
-
-GYM_NAMESPACE = "gcs_push"
-
-
-class LeRobotGcsPushBoxEnv(GcsPushBoxEnv):
-    """`GcsPushBoxEnv` with the `task` / `task_description` lerobot-eval queries on every sub-env.
-
-    lerobot-eval calls `env.call("task_description")` and `env.get_attr("task")`; in an AsyncVectorEnv
-    a missing attribute kills the worker, so both must exist. They hold the datasets' task string.
-    """
-
-    task = task_description = TASK
-
-
-if f"{GYM_NAMESPACE}/GcsPushBox-v0" not in gym.registry:
-    gym.register(id=f"{GYM_NAMESPACE}/GcsPushBox-v0", entry_point=LeRobotGcsPushBoxEnv)
 
 
 @EnvConfig.register_subclass("gcs_push")
 @dataclass
 class GcsPushEnvConfig(EnvConfig):
-    task: str | None = "GcsPushBox-v0"
+    task: str | None = ENV_ID
     fps: int = Scene.fps
     episode_length: int = round(Scene.timeout_s * Scene.fps)  # steps: the paper's 500 s timeout
     success_threshold: float = Scene.success_threshold  # m, box centre to goal
@@ -66,11 +48,11 @@ class GcsPushEnvConfig(EnvConfig):
 
     @property
     def package_name(self) -> str:
-        return __name__  # what create_envs imports if the gym id is not registered yet
+        return "lerobot_gcs_push"  # what create_envs imports if the gym id is not registered yet
 
     @property
     def gym_id(self) -> str:
-        return f"{GYM_NAMESPACE}/{self.task}"
+        return self.task
 
     @property
     def gym_kwargs(self) -> dict:

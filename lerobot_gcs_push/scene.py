@@ -167,13 +167,28 @@ def _vector2(value, what: str) -> np.ndarray:
     return arr
 
 
+TASK = "Push the red box onto the green goal."  # the language instruction stored with every frame
+SAMPLERS = ("sobol", "uniform", "hard")
+HARD_KINDS = ("goal_side", "corner", "tiny_push", "edge")
+
+
+def check_sampler(sampler: str) -> str:
+    if sampler not in SAMPLERS:
+        raise ValueError(f"unknown sampler {sampler!r}: choose one of {SAMPLERS}")
+    return sampler
+
+
 @dataclass(frozen=True)
 class InitialCondition:
     box: tuple[float, float]
     finger: tuple[float, float]
+    kind: str = ""  # which family of the hard sampler drew it ("" for the space-filling samplers)
 
     def to_json(self) -> dict:
-        return {"box": list(self.box), "finger": list(self.finger)}
+        out = {"box": list(self.box), "finger": list(self.finger)}
+        if self.kind:
+            out["kind"] = self.kind
+        return out
 
 
 def sample_initial_conditions(
@@ -187,14 +202,26 @@ def sample_initial_conditions(
 
     `sobol` (default) is a scrambled Sobol sequence over (box x, box y, finger x, finger y): it covers the
     corners the paper's uniform samples left sparse (its Figs. 4 and 6). `uniform` reproduces the paper.
+    `hard` draws, in turn, the configurations a behaviour-cloned policy gets wrong (see `_hard_point`).
     `collides(box, finger)` defaults to the exact sphere-box distance; the env passes Drake's query.
     The i-th condition depends only on the seed and i, so a prefix of a longer list is the shorter list.
     """
     if n < 0:
         raise ValueError(f"number of initial conditions must be >= 0, got {n}")
+    check_sampler(sampler)
     if collides is None:
         collides = lambda b, f: scene.finger_box_gap(b, f) < 0  # noqa: E731
     out: list[InitialCondition] = []
+    if sampler == "hard":
+        for i in range(n):
+            rng = np.random.default_rng([seed, i])
+            kind = HARD_KINDS[i % len(HARD_KINDS)]
+            while True:  # redraws come from the same stream, so the i-th condition still depends on (seed, i)
+                box, finger = _hard_point(scene, kind, rng)
+                if not collides(box, finger):
+                    break
+            out.append(InitialCondition(tuple(map(float, box)), tuple(map(float, finger)), kind))
+        return out
     for point in _unit_points(sampler, seed):
         box = (2 * point[:2] - 1) * scene.box_init_half_width
         finger = (2 * point[2:] - 1) * scene.finger_init_half_width
@@ -206,16 +233,88 @@ def sample_initial_conditions(
     return out
 
 
+def _hard_point(scene: Scene, kind: str, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """One (box, finger) of a family that uniform sampling rarely draws but a policy must handle:
+
+    - goal_side: the box out along an axis from the goal, the finger between box and goal, aligned with
+      the goal-facing face: the plan must go around the box; the nearest face pushes it the wrong way.
+    - corner: the box near a corner, the finger just off one of its two goal-facing faces.
+    - tiny_push: the box a few decimetres from the goal, the finger far away.
+    - edge: the box along an edge of its region, the finger anywhere.
+    """
+    g, lim = scene.goal_array, scene.box_limit
+    near = scene.contact_distance + 0.05  # finger centre just clear of a face
+    lateral = scene.box_half - 0.1  # within the face's span
+    if kind == "goal_side":
+        axis, sign = rng.integers(2), rng.choice([-1.0, 1.0])
+        box = g.copy()
+        box[axis] += sign * rng.uniform(1.5, lim - abs(g[axis]))
+        box[1 - axis] += rng.uniform(-0.5, 0.5)
+        finger = box.copy()
+        finger[axis] -= sign * rng.uniform(near, near + 0.7)
+        finger[1 - axis] += rng.uniform(-lateral, lateral)
+    elif kind == "corner":
+        signs = rng.choice([-1.0, 1.0], size=2)
+        box = signs * rng.uniform(lim - 1.5, lim, size=2)
+        axis = rng.integers(2)
+        finger = box.copy()
+        finger[axis] -= signs[axis] * rng.uniform(near, near + 0.7)  # off the face that looks toward the goal
+        finger[1 - axis] += rng.uniform(-lateral, lateral)
+    elif kind == "tiny_push":
+        angle = rng.uniform(0, 2 * np.pi)
+        box = g + rng.uniform(0.15, 0.9) * np.array([np.cos(angle), np.sin(angle)])
+        finger = rng.uniform(-scene.finger_init_half_width, scene.finger_init_half_width, size=2)
+        axis = rng.integers(2)
+        finger[axis] = rng.choice([-1.0, 1.0]) * rng.uniform(3.5, scene.finger_init_half_width)
+    elif kind == "edge":
+        axis = rng.integers(2)
+        box = rng.uniform(-lim, lim, size=2)
+        box[axis] = rng.choice([-1.0, 1.0]) * rng.uniform(lim - 1.0, lim)
+        finger = rng.uniform(-scene.finger_init_half_width, scene.finger_init_half_width, size=2)
+    else:
+        raise ValueError(f"unknown hard kind {kind!r}: choose one of {HARD_KINDS}")
+    return np.clip(box, -lim, lim), np.clip(finger, -scene.finger_limit, scene.finger_limit)
+
+
+def episode_seed(seed: int, index: int) -> int:
+    """The env seed of episode `index` of a run seeded `seed`: independent of worker count and order."""
+    return int(np.random.SeedSequence([seed, index]).generate_state(1)[0])
+
+
+def load_initial_conditions(path) -> list[dict]:
+    """A JSON list of {"box": [x, y], "finger": [x, y]} (other keys kept), with errors that name the entry."""
+    import json
+
+    try:
+        with open(path) as f:
+            data = json.load(f)
+    except FileNotFoundError:
+        raise FileNotFoundError(f"initial-conditions file {str(path)!r} does not exist") from None
+    except json.JSONDecodeError as err:
+        raise ValueError(f"initial-conditions file {str(path)!r} is not valid JSON: {err}") from None
+    if not isinstance(data, list):
+        raise ValueError(f"{str(path)!r} must hold a JSON list of {{\"box\": [x, y], \"finger\": [x, y]}}")
+    out = []
+    for i, item in enumerate(data):
+        try:
+            box, finger = [float(v) for v in item["box"]], [float(v) for v in item["finger"]]
+            if len(box) != 2 or len(finger) != 2:
+                raise ValueError
+        except (KeyError, TypeError, ValueError):
+            raise ValueError(f"{str(path)!r} entry {i} must be {{\"box\": [x, y], \"finger\": [x, y]}}, "
+                             f"got {item!r}") from None
+        out.append({**item, "box": box, "finger": finger})
+    return out
+
+
 def _unit_points(sampler: str, seed: int) -> Iterator[np.ndarray]:
     if sampler == "uniform":
         rng = np.random.default_rng(seed)
         while True:
             yield rng.random(4)
-    elif sampler == "sobol":
+    else:
         from scipy.stats import qmc
 
         engine = qmc.Sobol(d=4, scramble=True, rng=np.random.default_rng(seed))
         while True:
             yield from engine.random(64)
-    else:
-        raise ValueError(f"unknown sampler {sampler!r}: choose 'sobol' or 'uniform'")

@@ -10,7 +10,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import lerobot_gcs_push  # noqa: F401  (registers the env ids)
-from lerobot_gcs_push.env import ENV_IDS, DisturbanceSchedule, GcsPushBoxEnv, register_envs
+from lerobot_gcs_push.env import ENV_ID, DisturbanceSchedule, GcsPushBoxEnv, register_envs
 from lerobot_gcs_push.scene import Disturbances, Scene
 
 SCENE = Scene()
@@ -52,16 +52,28 @@ def test_check_env_passes(obs_type):
     env.close()
 
 
-def test_registered_ids_make_the_env_without_time_limit():
+def test_the_registered_id_makes_the_env_without_time_limit():
     register_envs()  # idempotent
     register_envs()
-    for env_id in ENV_IDS:
-        e = gym.make(env_id, max_sim_time_s=0.3, render_size=96)
-        assert isinstance(e.unwrapped, GcsPushBoxEnv)
-        assert e.get_wrapper_attr("_max_episode_steps") == 3
-        assert e.spec.max_episode_steps is None  # our own truncation is the only one
-        assert e.unwrapped.metadata["render_fps"] == 10
-        e.close()
+    assert [i for i in gym.registry if "GcsPushBox" in i] == [ENV_ID]  # one id, one registration
+    e = gym.make(ENV_ID, max_sim_time_s=0.3, render_size=96)
+    assert isinstance(e.unwrapped, GcsPushBoxEnv)
+    assert e.get_wrapper_attr("_max_episode_steps") == 3
+    assert e.spec.max_episode_steps is None  # our own truncation is the only one
+    assert e.unwrapped.metadata["render_fps"] == 10
+    assert e.unwrapped.task == e.unwrapped.task_description == "Push the red box onto the green goal."
+    e.close()
+
+
+def test_actions_outside_the_action_space_are_clipped_to_it():
+    e = GcsPushBoxEnv(max_sim_time_s=30, render_size=96)
+    e.reset(options={"box": [-3.0, -3.0], "finger": [3.0, 3.0]})
+    lim = e.scene.finger_limit
+    assert np.all(e.action_space.high == lim)
+    for _ in range(60):
+        _, _, _, _, info = e.step([100.0, 100.0])
+    # The finger settles at the corner of its square (within the PID's millimetres), not beyond it.
+    np.testing.assert_allclose(info["finger"], [lim, lim], atol=0.02)
 
 
 def test_truncation_success_and_info():

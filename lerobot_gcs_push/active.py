@@ -1,0 +1,112 @@
+"""Active data: the GCS expert labels the states a learned policy visits (DAgger with an optimal expert).
+
+A round is four resumable steps:
+
+1. `gcs-push evaluate --policy POLICY --sampler hard ...` rolls the policy out and scores every executed
+   chunk against the GCS cost-to-go (`regret_chunks` in `runs.jsonl`);
+2. `gcs-push collect --rollouts DIR ...` (this module) picks branch states along those rollouts (every
+   chunk start of large regret, and a seeded fraction of the others) and runs the closed-loop GCS expert
+   from each to the goal, recorded as a LeRobotDataset like any other (`dataset.generate`);
+3. LeRobot merges it with earlier data (`lerobot-edit-dataset --operation.type=merge`);
+4. `lerobot-train --policy.path=POLICY` fine-tunes on the merge.
+
+The expert starts from the policy's own states, so the images it is recorded with are the ones the
+policy will meet; its action chunks are what the policy should have done there.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from lerobot_gcs_push.dataset import GenerateConfig, GenerateReport, dataset_root, generate
+from lerobot_gcs_push.evaluation import GCS_POLICIES, read_runs
+from lerobot_gcs_push.expert import plannable
+from lerobot_gcs_push.scene import Scene
+
+
+@dataclass
+class CollectConfig:
+    rollouts: list[str] = field(default_factory=list)  # `gcs-push evaluate` output folders
+    repo_id: str = "local/gcs_push_active"
+    root: str | None = None  # default: $HF_LEROBOT_HOME/<repo_id>
+    # Chunk starts above these regrets are branched from: any mistake of a successful run; in a failed
+    # run also the slower drift (a wrong-face push costs a few decimetres a chunk). The GCS experts'
+    # own chunks stay under 0.5 m, so neither picks noise.
+    large_regret_m: float = 0.5
+    failed_regret_m: float = 0.25
+    keep_fraction: float = 0.05  # of the other chunk starts, for coverage of the policy's distribution
+    max_per_run: int = 12  # spread over the run's time, so the decision and the drift after it both count
+    clearance: float = 0.02  # m between finger and box at a branch state (contact compliance, Drake's query)
+    seed: int = 0
+    workers: int = 2
+    overwrite: bool = False
+    resume: bool = False
+
+    def __post_init__(self) -> None:
+        if not self.rollouts:
+            raise ValueError("give at least one --rollouts folder (written by `gcs-push evaluate`)")
+        for r in self.rollouts:
+            if not (Path(r) / "runs.jsonl").is_file():
+                raise FileNotFoundError(f"{r} has no runs.jsonl: pass a `gcs-push evaluate` output folder")
+        if not 0.0 <= self.keep_fraction <= 1.0:
+            raise ValueError(f"keep_fraction must be in [0, 1], got {self.keep_fraction}")
+        if self.max_per_run < 1:
+            raise ValueError(f"max_per_run must be >= 1, got {self.max_per_run}")
+
+
+def branch_states(records: list[dict], cfg: CollectConfig, scene: Scene | None = None) -> list[dict]:
+    """The states to label, in a deterministic order: for each learned-policy run, its chunk starts of
+    large regret and a seeded `keep_fraction` of the rest, at most `max_per_run` spread over time.
+
+    States the expert cannot start from are left out: a box already at the goal, or one the policy
+    pushed out of the box workspace (the env refuses such an initial condition).
+    """
+    scene = scene or Scene()
+    out = []
+    for rec in sorted(records, key=lambda r: (r["policy"], r["disturbances"], r["initial_condition_index"], r["run"])):
+        if rec["policy"] in GCS_POLICIES or not rec.get("regret_chunks"):
+            continue
+        rng = np.random.default_rng([cfg.seed, rec["initial_condition_index"], rec["run"], int(rec["disturbances"])])
+        chunks = np.array(rec["regret_chunks"], float)  # step, regret, box x, box y, finger x, finger y
+        threshold = cfg.large_regret_m if rec["success"] else cfg.failed_regret_m
+        keep = (np.nan_to_num(chunks[:, 1], nan=np.inf) > threshold) | (rng.random(len(chunks)) < cfg.keep_fraction)
+        picked = chunks[keep]
+        if len(picked) > cfg.max_per_run:
+            picked = picked[np.unique(np.linspace(0, len(picked) - 1, cfg.max_per_run).round().astype(int))]
+        for step, regret, bx, by, fx, fy in picked:
+            box, finger = plannable(scene, [bx, by], [fx, fy], clearance=cfg.clearance)
+            if np.max(np.abs(box)) > scene.box_limit or scene.box_goal_distance(box) <= scene.success_threshold:
+                continue
+            out.append({"box": box.round(6).tolist(), "finger": finger.round(6).tolist(),
+                        "source": {"rollouts": rec.get("_source", ""), "label": rec["label"],
+                                   "initial_condition_index": rec["initial_condition_index"], "run": rec["run"],
+                                   "step": int(step), "regret": float(regret), "run_success": rec["success"]}})
+    return out
+
+
+def collect(cfg: CollectConfig) -> tuple[GenerateReport, list[dict]]:
+    """Branch states from the rollouts, labelled by the closed-loop GCS expert, as a LeRobotDataset."""
+    records = []
+    for folder in cfg.rollouts:
+        for rec in read_runs(Path(folder) / "runs.jsonl"):
+            records.append(rec | {"_source": str(folder)})
+    states = branch_states(records, cfg)
+    if not states:
+        raise ValueError(f"no branch states in {cfg.rollouts}: did the evaluation record regret for a learned policy?")
+    gen = GenerateConfig(episodes=len(states), repo_id=cfg.repo_id, root=cfg.root, seed=cfg.seed,
+                         workers=cfg.workers, expert="closed-loop", overwrite=cfg.overwrite, resume=cfg.resume)
+    root = dataset_root(gen)
+    # The list sits beside the dataset (kept for provenance), written whole before generation reads it.
+    states_path = root.with_name(root.name + ".branch_states.json")
+    if not (cfg.resume and states_path.exists()):
+        states_path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = states_path.with_name("." + states_path.name)
+        tmp.write_text(json.dumps(states))
+        os.replace(tmp, states_path)
+    gen.initial_conditions = str(states_path)
+    return generate(gen), states

@@ -1,0 +1,118 @@
+"""Active data: the hard sampler, the regret bookkeeping, branch states and their expert labels."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lerobot_gcs_push.active import CollectConfig, branch_states, collect
+from lerobot_gcs_push.expert import chunk_regret, plannable
+from lerobot_gcs_push.scene import HARD_KINDS, Scene, sample_initial_conditions
+
+SCENE = Scene()
+
+
+def test_hard_sampler_is_seeded_prefix_stable_and_draws_each_family_in_turn():
+    ics = sample_initial_conditions(SCENE, 40, seed=3000, sampler="hard")
+    assert sample_initial_conditions(SCENE, 9, seed=3000, sampler="hard") == ics[:9]
+    assert sample_initial_conditions(SCENE, 9, seed=3001, sampler="hard") != ics[:9]
+    assert [ic.kind for ic in ics[:8]] == list(HARD_KINDS) * 2
+    for ic in ics:
+        SCENE.validate_state(ic.box, ic.finger)  # in the workspace, no overlap
+
+
+def test_hard_sampler_families_have_their_geometry():
+    g = SCENE.goal_array
+    for ic in sample_initial_conditions(SCENE, 80, seed=7, sampler="hard"):
+        box, finger = np.array(ic.box), np.array(ic.finger)
+        if ic.kind == "goal_side":
+            axis = int(np.argmax(np.abs(box - g)))
+            # The finger sits between box and goal along the axis, in front of the goal-facing face.
+            assert abs(finger[axis] - g[axis]) < abs(box[axis] - g[axis])
+            assert abs(finger[1 - axis] - box[1 - axis]) < SCENE.box_half
+        elif ic.kind == "corner":
+            assert np.all(np.abs(box) >= SCENE.box_limit - 1.5 - 1e-9)
+            assert SCENE.finger_box_gap(box, finger) < 0.8
+        elif ic.kind == "tiny_push":
+            assert 0.15 - 1e-9 <= SCENE.box_goal_distance(box) <= 0.9 + 1e-9
+            assert np.max(np.abs(finger)) >= 3.5
+        elif ic.kind == "edge":
+            assert np.max(np.abs(box)) >= SCENE.box_limit - 1.0 - 1e-9
+
+
+def test_plannable_clears_the_box_by_the_clearance_and_leaves_free_states_alone():
+    rng = np.random.default_rng(0)
+    for _ in range(5000):
+        box = rng.uniform(-4, 4, 2)
+        finger = box + rng.uniform(-1.0, 1.0, 2)
+        b, f = plannable(SCENE, box, finger, clearance=0.02)
+        assert SCENE.finger_box_gap(b, f) >= 0.02 - 1e-9
+        if SCENE.finger_box_gap(box, finger) >= 0.02:
+            np.testing.assert_array_equal(f, finger)
+        else:  # moved no farther than needed: the gap is exactly the clearance
+            assert SCENE.finger_box_gap(b, f) == pytest.approx(0.02, abs=1e-9)
+
+
+def test_chunk_regret_bookkeeping_on_a_hand_computed_case():
+    # V = straight-line distance of the finger to a target: a straight walk has zero regret, a detour
+    # of known length has that regret, in the chunk where it happens.
+    target = np.array([4.0, 0.0])
+
+    def value(box, finger):
+        return float(np.linalg.norm(target - finger))
+
+    straight = np.c_[np.linspace(0, 4, 17), np.zeros(17)]
+    chunks = chunk_regret(value, np.zeros((17, 2)), straight, every=8)
+    assert [c["step"] for c in chunks] == [0, 8]
+    assert [c["regret"] for c in chunks] == pytest.approx([0.0, 0.0], abs=1e-12)
+    detour = np.array([[0, 0], [0, 1], [0, 0], [4, 0]], float)  # 2 m out and back, then 4 m
+    chunks = chunk_regret(value, np.zeros((4, 2)), detour, every=2)
+    assert [c["regret"] for c in chunks] == pytest.approx([2.0, 0.0])
+
+
+def _record(success, regrets, box=(3.0, 0.0), finger=(2.0, 0.0), policy="policies/x", ic=0):
+    chunks = [[8 * k, r, box[0] + 0.01 * k, box[1], finger[0], finger[1] + 0.01 * k] for k, r in enumerate(regrets)]
+    return {"policy": policy, "label": "dp:x", "disturbances": False, "initial_condition_index": ic, "run": 0,
+            "success": success, "regret_chunks": chunks}
+
+
+def test_branch_states_pick_mistakes_cap_them_over_time_and_skip_what_cannot_start(tmp_path):
+    (tmp_path / "runs.jsonl").write_text("")
+    cfg = CollectConfig(rollouts=[str(tmp_path)], keep_fraction=0.0, max_per_run=3)
+    failed = _record(False, [0.1, 0.3, 0.0, 0.4, 0.6, 0.26, 0.9])  # 5 above 0.25
+    ok = _record(True, [0.1, 0.3, 0.7, 0.0], ic=1)  # 1 above 0.5
+    gcs = _record(False, [5.0, 5.0], policy="gcs-open-loop", ic=2)  # experts are never branched from
+    at_goal = _record(False, [1.0], box=(0.01, 0.0), finger=(2.0, 0.0), ic=3)
+    states = branch_states([failed, ok, gcs, at_goal], cfg)
+    steps = [(s["source"]["initial_condition_index"], s["source"]["step"]) for s in states]
+    assert steps == [(0, 8), (0, 32), (0, 48), (1, 16)]  # first, middle, last of the 5; the one mistake
+    for s in states:
+        assert SCENE.finger_box_gap(s["box"], s["finger"]) >= cfg.clearance - 1e-6
+    everything = branch_states([failed], CollectConfig(rollouts=[str(tmp_path)], keep_fraction=1.0, max_per_run=99))
+    assert len(everything) == 7
+
+
+@pytest.mark.slow
+def test_collect_records_the_expert_from_the_policy_states(tmp_path):
+    """Episodes start at the branch states (the images are rendered there) and reach the goal."""
+    runs = [_record(False, [0.1, 0.6, 0.7], box=(2.5, -1.0), finger=(1.0, 1.5))]
+    (tmp_path / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in runs))
+    cfg = CollectConfig(rollouts=[str(tmp_path)], repo_id="local/test_active", root=str(tmp_path / "ds"),
+                        keep_fraction=0.0, workers=1)
+    report, states = collect(cfg)
+    assert len(states) == 2 and report.episodes == 2 and report.failures == 0
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    ds = LeRobotDataset("local/test_active", root=tmp_path / "ds", video_backend="pyav")
+    starts = np.asarray(ds.meta.episodes["dataset_from_index"])
+    ends = np.asarray(ds.meta.episodes["dataset_to_index"])
+    for s, (a, b) in zip(states, zip(starts, ends)):
+        first, last = ds[int(a)], ds[int(b) - 1]
+        np.testing.assert_allclose(first["observation.environment_state"].numpy(), s["box"], atol=1e-4)
+        np.testing.assert_allclose(first["observation.state"].numpy(), s["finger"], atol=1e-4)
+        assert np.linalg.norm(last["observation.environment_state"].numpy()) < 0.25  # on its way in
+    meta = json.loads((tmp_path / "ds.branch_states.json").read_text())
+    assert meta == states
