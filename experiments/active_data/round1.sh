@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# Active data, round 1 (session 10): run 7 (policies/diffusion_cpu) -> round 1, against an equal-cost control.
+# Every step resumes after a kill (evaluate and generate/collect keep their finished work; re-run the line).
+# Settings fixed before any evaluation of the fine-tuned weights:
+#   - both arms fine-tune run 7 for 3000 steps of batch 32, bf16, peak lr 1e-4 (run 7's), seed 8000, on
+#     the first 1000 of run 7's 3000 demonstrations plus their added data; step 3000 is the one evaluated;
+#   - the arms differ only in the added data: active = expert labels of the policy's own states;
+#     control = fresh GCS demonstrations from the hard sampler (the best non-interactive sampler for the
+#     failures seen), as many frames as the active data (`--frames`);
+#   - compared on the hard set (seed 3000, 20 x 5, 60 s timeout, no disturbances), then the winner under
+#     the full protocol: seeds 1000, 2000 and the hard set, with and without disturbances.
+set -euo pipefail
+export HF_HUB_OFFLINE=1
+R=outputs/active/round1
+
+# The base data: the first 1000 of run 7's demonstrations (same seed, same Sobol stream).
+.venv/bin/gcs-push generate --episodes 1000 --repo-id local/gcs_push_box_1000 --workers 2
+
+# 1. Roll run 7 out on hard and on space-filling initial conditions (seeds apart from every evaluation set).
+.venv/bin/gcs-push evaluate --policy policies/diffusion_cpu --disturbances --sampler hard --seed 4000 \
+    --num-initial-conditions 60 --runs 1 --timeout-s 60 --workers 2 --videos 0 --output-dir $R/rollouts_hard
+.venv/bin/gcs-push evaluate --policy policies/diffusion_cpu --disturbances --sampler sobol --seed 4001 \
+    --num-initial-conditions 40 --runs 1 --timeout-s 60 --workers 2 --videos 0 --output-dir $R/rollouts_sobol
+
+# 2. Branch states labelled by the closed-loop expert.
+.venv/bin/gcs-push collect --rollouts $R/rollouts_hard --rollouts $R/rollouts_sobol \
+    --repo-id local/gcs_push_r1_active --workers 2 --resume
+
+# The control: as many frames of fresh hard-sampler GCS demonstrations (FRAMES = the active data's).
+FRAMES=$(.venv/bin/python -c "import json,os;print(json.load(open(os.path.expanduser('~/.cache/huggingface/lerobot/local/gcs_push_r1_active/meta/info.json')))['total_frames'])")
+.venv/bin/gcs-push generate --episodes 2000 --frames "$FRAMES" --sampler hard --seed 4002 \
+    --repo-id local/gcs_push_r1_control --workers 2 --resume
+
+# 3. Merges, with LeRobot's aggregation (delete a half-written output folder before re-running one).
+for arm in active control; do
+    .venv/bin/lerobot-edit-dataset --new_repo_id local/gcs_push_r1_${arm}_merged --operation.type merge \
+        --operation.repo_ids "['local/gcs_push_box_1000', 'local/gcs_push_r1_${arm}']"
+done
+
+# 4. Fine-tune both arms from run 7 (resume a killed run with --resume=true --config_path=<its train_config.json>).
+for arm in active control; do
+    OMP_NUM_THREADS=2 .venv/bin/lerobot-train --config_path=configs/policy/diffusion_cpu.json \
+        --policy.path=policies/diffusion_cpu --dataset.repo_id=local/gcs_push_r1_${arm}_merged \
+        --output_dir=outputs/train/r1_${arm} --job_name=r1_${arm} --steps=3000 --save_freq=1000 \
+        --policy.use_amp=true --policy.optimizer_lr=1e-4 --seed=8000 --num_workers=1
+    .venv/bin/python -c "from lerobot_gcs_push.checkpoints import export_policy; export_policy('outputs/train/r1_${arm}/checkpoints/003000/pretrained_model', 'experiments/active_data/round1/${arm}_step3000')"
+done
+
+# 5. Evaluate: the hard set, run 7 beside both arms.
+.venv/bin/gcs-push evaluate --policy gcs-open-loop --policy policies/diffusion_cpu \
+    --policy experiments/active_data/round1/active_step3000 --policy experiments/active_data/round1/control_step3000 \
+    --sampler hard --seed 3000 --num-initial-conditions 20 --runs 5 --timeout-s 60 --workers 2 --videos 1 \
+    --output-dir results/active_round1_hard
