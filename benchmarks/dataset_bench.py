@@ -11,8 +11,15 @@ def run(episodes: int = 100, workers: int = 2) -> dict:
     from lerobot_gcs_push.dataset import GenerateConfig, generate
 
     with tempfile.TemporaryDirectory() as tmp:
-        report = generate(GenerateConfig(episodes=episodes, repo_id="bench/gcs_push_box", root=str(Path(tmp) / "ds"),
-                                         workers=workers, progress=False))
+        report = generate(
+            GenerateConfig(
+                episodes=episodes,
+                repo_id="bench/gcs_push_box",
+                root=str(Path(tmp) / "ds"),
+                workers=workers,
+                progress=False,
+            )
+        )
     return {
         "episodes": float(report.episodes),
         "workers": float(workers),

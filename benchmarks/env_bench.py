@@ -68,8 +68,11 @@ def tracking(env, speeds=(0.2, 0.5, 1.0), distance: float = 1.0) -> dict:
             _, _, _, _, info = env.step(command)
             lags.append(command[0] - info["finger"][0])
         target = box[0] + distance
-        result = {"lag_m": float(np.median(lags[n // 2:])), "max_lag_m": float(np.max(lags)),
-                  "box_err_at_stop_m": float(info["box"][0] - target)}
+        result = {
+            "lag_m": float(np.median(lags[n // 2 :])),
+            "max_lag_m": float(np.max(lags)),
+            "box_err_at_stop_m": float(info["box"][0] - target),
+        }
         held = 0.0
         for hold_s in (2.0, 5.0, 20.0):
             while held < hold_s - 1e-9:

@@ -1,6 +1,6 @@
 """`make bench`: every benchmark in one run, printed and saved to results/bench.json.
 
-    python -m benchmarks.run [--only env,planner,dataset,train] [--quick]
+    python -m benchmarks.run [--only env,planner,dataset,train,ray] [--quick]
 
 Medians and ratios come from one run on this machine; compare numbers from the same run only.
 """
@@ -29,7 +29,7 @@ TARGETS = {
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--only", default="env,planner,dataset,train")
+    ap.add_argument("--only", default="env,planner,dataset,train,ray")
     ap.add_argument("--quick", action="store_true", help="smaller samples (a smoke run, not for reporting)")
     ap.add_argument("--out", default="results/bench.json")
     args = ap.parse_args(argv)
@@ -49,6 +49,9 @@ def main(argv=None) -> int:
         elif name == "train":
             from benchmarks import train_bench as mod
             res = mod.run()
+        elif name == "ray":
+            from benchmarks import ray_bench as mod
+            res = mod.run(episodes=6, shard_size=2, copies=2) if args.quick else mod.run(episodes=100)
         else:
             raise SystemExit(f"unknown benchmark {name!r}")
         results[name] = res

@@ -36,9 +36,8 @@ REPO_ID = "local/gcs_push_box"
 
 def _policy_config(preset: str):
     import draccus
-    from lerobot.configs.policies import PreTrainedConfig
-
     import lerobot.policies  # noqa: F401  (registers the policy types)
+    from lerobot.configs.policies import PreTrainedConfig
 
     raw = json.loads((CONFIGS / PRESETS[preset]).read_text())
     return draccus.decode(PreTrainedConfig, raw["policy"]), raw
@@ -49,8 +48,9 @@ def _dataset(policy_cfg, root: Path):
     from lerobot.configs.train import TrainPipelineConfig
     from lerobot.datasets.factory import make_dataset
 
-    cfg = TrainPipelineConfig(dataset=DatasetConfig(repo_id=REPO_ID, root=str(root), video_backend="pyav"),
-                              policy=policy_cfg)
+    cfg = TrainPipelineConfig(
+        dataset=DatasetConfig(repo_id=REPO_ID, root=str(root), video_backend="pyav"), policy=policy_cfg
+    )
     return make_dataset(cfg)
 
 
@@ -59,12 +59,23 @@ def _dataloader(dataset, policy_cfg, batch_size: int, num_workers: int, seed: in
     from lerobot.datasets.sampler import EpisodeAwareSampler
 
     sampler = EpisodeAwareSampler(
-        dataset.meta.episodes["dataset_from_index"], dataset.meta.episodes["dataset_to_index"],
-        episode_indices_to_use=dataset.episodes, drop_n_last_frames=policy_cfg.drop_n_last_frames,
-        shuffle=True, seed=seed, absolute_to_relative_idx=dataset.absolute_to_relative_idx)
+        dataset.meta.episodes["dataset_from_index"],
+        dataset.meta.episodes["dataset_to_index"],
+        episode_indices_to_use=dataset.episodes,
+        drop_n_last_frames=policy_cfg.drop_n_last_frames,
+        shuffle=True,
+        seed=seed,
+        absolute_to_relative_idx=dataset.absolute_to_relative_idx,
+    )
     workers = {"prefetch_factor": 4, "persistent_workers": True, "multiprocessing_context": "spawn"}
-    return torch.utils.data.DataLoader(dataset, batch_size=batch_size, sampler=sampler, drop_last=False,
-                                       num_workers=num_workers, **(workers if num_workers > 0 else {}))
+    return torch.utils.data.DataLoader(
+        dataset,
+        batch_size=batch_size,
+        sampler=sampler,
+        drop_last=False,
+        num_workers=num_workers,
+        **(workers if num_workers > 0 else {}),
+    )
 
 
 def _cycle(loader):
@@ -72,9 +83,17 @@ def _cycle(loader):
         yield from loader
 
 
-def bench_preset(preset: str, root: Path, warmup: int = 1, steps: int = 3, inference_reps: int = 3,
-                 batch_size: int | None = None, num_workers: int | None = None, amp: bool = False,
-                 **policy_overrides) -> dict:
+def bench_preset(
+    preset: str,
+    root: Path,
+    warmup: int = 1,
+    steps: int = 3,
+    inference_reps: int = 3,
+    batch_size: int | None = None,
+    num_workers: int | None = None,
+    amp: bool = False,
+    **policy_overrides,
+) -> dict:
     """amp=True measures what `lerobot-train --policy.use_amp=true` does on CPU (bf16 autocast of the
     forward pass, fp32 weights); its keys are prefixed `<preset>_bf16_`."""
     import torch
@@ -161,8 +180,12 @@ def run(presets=("cpu", "paper"), dataset_root: str | None = None, episodes: int
     from datasets.utils.logging import disable_progress_bar
 
     disable_progress_bar()
-    out = {"torch_threads": __import__("torch").get_num_threads(), "cpu_count": os.cpu_count(),
-           "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY", ""), "load_avg_1min": os.getloadavg()[0]}
+    out = {
+        "torch_threads": __import__("torch").get_num_threads(),
+        "cpu_count": os.cpu_count(),
+        "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY", ""),
+        "load_avg_1min": os.getloadavg()[0],
+    }
     with tempfile.TemporaryDirectory(prefix="gcs_push_train_bench_") as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore")  # e.g. the DataLoader's "more workers than cores" for the paper preset
         root = Path(dataset_root) if dataset_root else _tiny_dataset(Path(tmp), episodes)

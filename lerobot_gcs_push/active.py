@@ -82,10 +82,21 @@ def branch_states(records: list[dict], cfg: CollectConfig, scene: Scene | None =
             box, finger = plannable(scene, [bx, by], [fx, fy], clearance=cfg.clearance)
             if np.max(np.abs(box)) > scene.box_limit or scene.box_goal_distance(box) <= scene.success_threshold:
                 continue
-            out.append({"box": box.round(6).tolist(), "finger": finger.round(6).tolist(),
-                        "source": {"rollouts": rec.get("_source", ""), "label": rec["label"],
-                                   "initial_condition_index": rec["initial_condition_index"], "run": rec["run"],
-                                   "step": int(step), "regret": float(regret), "run_success": rec["success"]}})
+            out.append(
+                {
+                    "box": box.round(6).tolist(),
+                    "finger": finger.round(6).tolist(),
+                    "source": {
+                        "rollouts": rec.get("_source", ""),
+                        "label": rec["label"],
+                        "initial_condition_index": rec["initial_condition_index"],
+                        "run": rec["run"],
+                        "step": int(step),
+                        "regret": float(regret),
+                        "run_success": rec["success"],
+                    },
+                }
+            )
     return out
 
 
@@ -98,8 +109,16 @@ def collect(cfg: CollectConfig) -> tuple[GenerateReport, list[dict]]:
     states = branch_states(records, cfg)
     if not states:
         raise ValueError(f"no branch states in {cfg.rollouts}: did the evaluation record regret for a learned policy?")
-    gen = GenerateConfig(episodes=len(states), repo_id=cfg.repo_id, root=cfg.root, seed=cfg.seed,
-                         workers=cfg.workers, expert="closed-loop", overwrite=cfg.overwrite, resume=cfg.resume)
+    gen = GenerateConfig(
+        episodes=len(states),
+        repo_id=cfg.repo_id,
+        root=cfg.root,
+        seed=cfg.seed,
+        workers=cfg.workers,
+        expert="closed-loop",
+        overwrite=cfg.overwrite,
+        resume=cfg.resume,
+    )
     root = dataset_root(gen)
     # The list sits beside the dataset (kept for provenance), written whole before generation reads it.
     states_path = root.with_name(root.name + ".branch_states.json")

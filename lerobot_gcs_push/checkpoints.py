@@ -32,8 +32,8 @@ def export_policy(src, dst, dtype: str = "float16", overwrite: bool = False) -> 
     """Write `src` (a `pretrained_model` directory) to `dst` with its floating-point weights in `dtype`.
 
     The processors' statistics and the config are copied unchanged, except that the config forgets the
-    path it was fine-tuned from (a path on the machine that trained it) and its training-time `use_amp`. `dst` appears whole or not at
-    all: it is written beside itself and renamed into place.
+    path it was fine-tuned from (a path on the machine that trained it) and its training-time `use_amp`.
+    `dst` appears whole or not at all: it is written beside itself and renamed into place.
     """
     import torch
     from safetensors.torch import load_file, save_file
@@ -42,13 +42,15 @@ def export_policy(src, dst, dtype: str = "float16", overwrite: bool = False) -> 
     if dtype not in DTYPES:
         raise ValueError(f"dtype must be one of {DTYPES}, got {dtype!r}")
     if not is_pretrained_dir(src):
-        raise FileNotFoundError(f"{src} is not a LeRobot pretrained_model directory (needs {CONFIG_FILE} "
-                                f"and {MODEL_FILE})")
+        raise FileNotFoundError(
+            f"{src} is not a LeRobot pretrained_model directory (needs {CONFIG_FILE} and {MODEL_FILE})"
+        )
     if dst.exists() and not overwrite:
         raise FileExistsError(f"{dst} exists: pass overwrite=True to replace it")
     target = getattr(torch, dtype)
-    tensors = {k: (v.to(target) if v.is_floating_point() else v).contiguous()
-               for k, v in load_file(src / MODEL_FILE).items()}
+    tensors = {
+        k: (v.to(target) if v.is_floating_point() else v).contiguous() for k, v in load_file(src / MODEL_FILE).items()
+    }
     dst.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix="." + dst.name + ".", dir=dst.parent))
     staging.chmod(0o755)

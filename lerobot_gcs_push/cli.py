@@ -57,7 +57,8 @@ def cmd_generate(args) -> int:
                              workers=args.workers, expert=args.expert, method=args.method, sampler=args.sampler,
                              disturbances=args.disturbances, overwrite=args.overwrite, resume=args.resume,
                              frames=args.frames,
-                             push_to_hub=args.push_to_hub)
+                             push_to_hub=args.push_to_hub,
+                             backend=args.backend, ray_address=args.ray_address, shard_size=args.shard_size)
         report = generate(cfg)
     except (ValueError, FileExistsError, RuntimeError) as err:
         raise SystemExit(f"error: {err}") from None
@@ -76,7 +77,8 @@ def cmd_evaluate(args) -> int:
                              sampler=args.sampler, large_regret_m=args.large_regret_m,
                              disturbances=args.disturbances, output_dir=args.output_dir, device=args.device,
                              workers=args.workers, timeout_s=args.timeout_s, dataset=args.dataset,
-                             videos=args.videos, overwrite=args.overwrite)
+                             videos=args.videos, overwrite=args.overwrite,
+                             backend=args.backend, ray_address=args.ray_address)
         summary = evaluate(cfg)
     except (ValueError, FileNotFoundError, FileExistsError) as err:
         raise SystemExit(f"error: {err}") from None
@@ -171,6 +173,9 @@ def build_parser() -> argparse.ArgumentParser:
     mode.add_argument("--overwrite", action="store_true")
     mode.add_argument("--resume", action="store_true")
     g.add_argument("--push-to-hub", action="store_true")
+    _backend_options(g)
+    g.add_argument("--shard-size", type=int, default=10,
+                   help="initial conditions per job, at most; each job writes one shard, merged at the end")
     g.set_defaults(func=cmd_generate)
 
     e = sub.add_parser("evaluate", help="the paper's evaluation protocol for any set of policies")
@@ -193,6 +198,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--dataset", default=None, help="repo id (or path) of the training dataset, for Fig. 4")
     e.add_argument("--videos", type=int, default=2, help="rollout videos per policy")
     e.add_argument("--overwrite", action="store_true")
+    _backend_options(e)
     e.set_defaults(func=cmd_evaluate)
 
     c = sub.add_parser("collect", help="active data: label the states a policy visited with the GCS expert")
@@ -224,6 +230,13 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--overwrite", action="store_true")
     d.set_defaults(func=cmd_demo)
     return p
+
+
+def _backend_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--backend", choices=["process", "ray"], default="process",
+                   help="worker processes on this machine, or Ray actors (--workers of them) on a Ray cluster")
+    p.add_argument("--ray-address", default=None,
+                   help="with --backend ray: 'auto' or HOST:PORT joins a running cluster; default: start Ray here")
 
 
 def main(argv=None) -> int:

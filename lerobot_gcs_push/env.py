@@ -20,8 +20,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from lerobot_gcs_push.scene import TASK, Disturbances, Scene, check_sampler, sample_initial_conditions
 from lerobot_gcs_push.registration import ENV_ID, register_envs  # noqa: F401  (re-exported)
+from lerobot_gcs_push.scene import TASK, Disturbances, Scene, check_sampler, sample_initial_conditions
 from lerobot_gcs_push.sim import PushSim
 
 OBS_TYPES = ("pixels_agent_pos", "state")
@@ -72,7 +72,7 @@ class DisturbanceSchedule:
             lo, hi = max(d.tick, start), min(d.tick + p.duration_ticks, end)
             if lo < hi:
                 out = np.zeros((n_ticks, 2)) if out is None else out
-                out[lo - start:hi - start] += d.force
+                out[lo - start : hi - start] += d.force
         self._tick = end
         return out
 
@@ -82,11 +82,20 @@ class GcsPushBoxEnv(gym.Env):
     # lerobot-eval asks every sub-env for both (a missing attribute kills an AsyncVectorEnv worker).
     task = task_description = TASK
 
-    def __init__(self, obs_type: str = "pixels_agent_pos", fps: float = Scene.fps, max_sim_time_s: float = Scene.timeout_s,
-                 disturbances: bool = False, image_size: int | tuple[int, int] = 96,
-                 success_threshold: float | None = None, goal=None, render_mode: str | None = "rgb_array",
-                 scene: Scene | None = None, sampler: str = "uniform",
-                 render_size: int | tuple[int, int] = 384):
+    def __init__(
+        self,
+        obs_type: str = "pixels_agent_pos",
+        fps: float = Scene.fps,
+        max_sim_time_s: float = Scene.timeout_s,
+        disturbances: bool = False,
+        image_size: int | tuple[int, int] = 96,
+        success_threshold: float | None = None,
+        goal=None,
+        render_mode: str | None = "rgb_array",
+        scene: Scene | None = None,
+        sampler: str = "uniform",
+        render_size: int | tuple[int, int] = 384,
+    ):
         if obs_type not in OBS_TYPES:
             raise ValueError(f"obs_type must be one of {OBS_TYPES}, got {obs_type!r}")
         if render_mode not in (None, "rgb_array"):
@@ -119,10 +128,12 @@ class GcsPushBoxEnv(gym.Env):
             high = np.array([scene.view_half_width] * 2 + [np.inf] * 2)
             self.observation_space = spaces.Box(-high, high, dtype=np.float64)
         else:
-            self.observation_space = spaces.Dict({
-                "pixels": spaces.Box(0, 255, shape=(rows, cols, 3), dtype=np.uint8),
-                "agent_pos": agent,
-            })
+            self.observation_space = spaces.Dict(
+                {
+                    "pixels": spaces.Box(0, 255, shape=(rows, cols, 3), dtype=np.uint8),
+                    "agent_pos": agent,
+                }
+            )
         self._schedule: DisturbanceSchedule | None = None
         self._steps = 0
 
@@ -131,11 +142,18 @@ class GcsPushBoxEnv(gym.Env):
         if options and ("box" in options or "finger" in options):
             box, finger = self.scene.validate_state(options.get("box"), options.get("finger"))
             if self.sim.collides(box, finger):
-                raise ValueError(f"initial condition: finger {finger.tolist()} overlaps the box {box.tolist()} "
-                                 f"(Drake's collision query)")
+                raise ValueError(
+                    f"initial condition: finger {finger.tolist()} overlaps the box {box.tolist()} "
+                    f"(Drake's collision query)"
+                )
         else:
-            ic = sample_initial_conditions(self.scene, 1, seed=int(self.np_random.integers(2**63 - 1)),
-                                           sampler=self.sampler, collides=self.sim.collides)[0]
+            ic = sample_initial_conditions(
+                self.scene,
+                1,
+                seed=int(self.np_random.integers(2**63 - 1)),
+                sampler=self.sampler,
+                collides=self.sim.collides,
+            )[0]
             box, finger = np.array(ic.box), np.array(ic.finger)
         self.sim.reset(box, finger)
         self._steps = 0

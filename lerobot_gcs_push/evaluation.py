@@ -12,7 +12,6 @@ an interrupted evaluation keeps its finished runs and continues where it stopped
 from __future__ import annotations
 
 import json
-import multiprocessing as mp
 import os
 import time
 from dataclasses import asdict, dataclass, field
@@ -69,6 +68,8 @@ class EvaluateConfig:
     dataset: str | None = None
     videos: int = 2
     overwrite: bool = False
+    backend: str = "process"  # or "ray": where the runs go (see lerobot_gcs_push.workers)
+    ray_address: str | None = None  # "auto" or "HOST:PORT" joins a running Ray cluster; none starts one here
 
     def __post_init__(self) -> None:
         if not self.policies:
@@ -84,6 +85,9 @@ class EvaluateConfig:
         check_sampler(self.sampler)
         if self.device not in ("cpu", "cuda", "mps") and not self.device.startswith("cuda:"):
             raise ValueError(f"unknown device {self.device!r}")
+        from lerobot_gcs_push.workers import check_backend
+
+        check_backend(self.backend, self.ray_address)
 
 
 def variants(cfg: EvaluateConfig) -> list[tuple[str, bool]]:
@@ -186,17 +190,12 @@ class _Runner:
             if frames is not None:
                 frames.append(env.render())
 
-        if policy in GCS_POLICIES:
-            from lerobot_gcs_push.expert import rollout
+        from lerobot_gcs_push.rollout import rollout
 
-            res = rollout(env, self.expert(policy), ic["box"], ic["finger"], seed=seed, on_step=on_step)
-            plan_time = res["plan_time_s"]
-            chunk = GCS_CHUNK_STEPS
-        else:
-            learned = self.learned(policy)
-            res = learned.rollout(env, ic, seed, on_step)
-            plan_time = 0.0
-            chunk = learned.chunk_steps
+        actor = self.expert(policy) if policy in GCS_POLICIES else self.learned(policy)
+        res = rollout(env, actor, ic["box"], ic["finger"], seed=seed, on_step=on_step)
+        plan_time = res.get("plan_time_s", 0.0)
+        chunk = getattr(actor, "chunk_steps", GCS_CHUNK_STEPS)
         traj_f.append(np.asarray(res["finger_final"], float))
         traj_b.append(np.asarray(res["box_final"], float))
         label = variant_label(policy, dist)
@@ -220,7 +219,8 @@ class _Runner:
 
 
 class LearnedPolicy:
-    """A LeRobot checkpoint, run the way lerobot-eval runs it (processors, action queue)."""
+    """A LeRobot checkpoint as a `rollout.Policy`, run the way lerobot-eval runs it (processors, action
+    queue: a chunk is predicted every `chunk_steps` steps)."""
 
     def __init__(self, path: str, device: str):
         import torch
@@ -239,40 +239,36 @@ class LearnedPolicy:
         self.torch = torch
         self.chunk_steps = int(cfg.n_action_steps)  # actions executed per predicted chunk
 
-    def rollout(self, env, ic: dict, seed: int, on_step) -> dict:
+    def reset(self, obs, info: dict, seed: int | None) -> None:
+        # The diffusion sampler's noise comes from torch's global generator: seeded per episode, a run
+        # is reproducible whatever ran before it in this process.
+        if seed is not None:
+            self.torch.manual_seed(seed)
+        self.policy.reset()
+
+    def act(self, obs, info: dict) -> np.ndarray:
         from lerobot.envs.utils import preprocess_observation
 
-        torch = self.torch
-        torch.manual_seed(seed)
-        self.policy.reset()
-        obs, info = env.reset(seed=seed, options={"box": ic["box"], "finger": ic["finger"]})
-        t0 = time.perf_counter()
-        terminated = truncated = False
-        while not (terminated or truncated):
-            batch = preprocess_observation({"pixels": obs["pixels"][None], "agent_pos": obs["agent_pos"][None]})
-            batch["task"] = [TASK]
-            with torch.inference_mode():
-                action = self.post(self.policy.select_action(self.pre(batch)))
-            action = action.reshape(-1)[:2].cpu().numpy().astype(np.float64)
-            on_step(obs, action, info)
-            obs, _, terminated, truncated, info = env.step(action)
-        return {"success": bool(info["is_success"]), "final_distance": float(info["box_goal_distance"]),
-                "sim_time_s": float(info["sim_time_s"]), "run_time_s": time.perf_counter() - t0,
-                "box_final": np.asarray(info["box"]).tolist(), "finger_final": np.asarray(info["finger"]).tolist(),
-                "disturbances": info.get("disturbances", [])}
+        batch = preprocess_observation({"pixels": obs["pixels"][None], "agent_pos": obs["agent_pos"][None]})
+        batch["task"] = [TASK]
+        with self.torch.inference_mode():
+            action = self.post(self.policy.select_action(self.pre(batch)))
+        return action.reshape(-1)[:2].cpu().numpy().astype(np.float64)
 
 
 _RUNNER: dict = {}
 
 
 def _init_worker(cfg_dict: dict, out: str) -> None:
-    try:
-        import torch
+    cfg = EvaluateConfig(**cfg_dict)
+    if cfg.workers > 1 or cfg.backend != "process":  # a pool's worker: one process per core
+        try:
+            import torch
 
-        torch.set_num_threads(1)  # one process per core
-    except ImportError:  # pragma: no cover
-        pass
-    _RUNNER["r"] = _Runner(EvaluateConfig(**cfg_dict), Path(out))
+            torch.set_num_threads(1)
+        except ImportError:  # pragma: no cover
+            pass
+    _RUNNER["r"] = _Runner(cfg, Path(out))
 
 
 def _run_job(job: dict) -> dict:
@@ -379,16 +375,13 @@ def _run_all(cfg: EvaluateConfig, out: Path, jobs: list[dict], runs_path: Path) 
         bar.update(1)
         bar.set_postfix(success=f"{ok}/{bar.n}")
 
+    from lerobot_gcs_push.workers import open_pool
+
     try:
-        if cfg.workers > 1:
-            ctx = mp.get_context("forkserver")
-            with ctx.Pool(cfg.workers, initializer=_init_worker, initargs=(asdict(cfg), str(out))) as pool:
-                for rec in pool.imap_unordered(_run_job, jobs):
-                    append(rec)
-        else:
-            runner = _Runner(cfg, out)
-            for job in jobs:
-                append(runner.run(job))
+        with open_pool(cfg.backend, cfg.workers, _init_worker, (asdict(cfg), str(out)), address=cfg.ray_address,
+                       hint=f"the finished runs are kept in {runs_path}: run the same command again to go on") as pool:
+            for rec in pool.map(_run_job, jobs):
+                append(rec)
     finally:
         bar.close()
 

@@ -1,7 +1,8 @@
-"""GCS experts that act in `GcsPushBox-v0`: the paper's open-loop policy and a closed-loop one.
+"""GCS experts that act in `GcsPushBox-v0`, the paper's open-loop policy and a closed-loop one, and the
+GCS cost-to-go that scores any policy's chunks (regret).
 
-Both are plain policies over the env's true state (`info["box"]`, `info["finger"]`); the env knows
-nothing about them.
+The experts are plain policies (`rollout.Policy`) over the env's true state (`info["box"]`,
+`info["finger"]`); the env knows nothing about them.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import numpy as np
 
 from lerobot_gcs_push.planner import GcsPlanner, Plan, SolverError, Speeds
 from lerobot_gcs_push.planner.plan import DWELL, PUSH, Schedule
+from lerobot_gcs_push.rollout import rollout  # noqa: F401  (TEMP re-export)
 
 EXPERTS = ("open-loop", "closed-loop")
 
@@ -35,8 +37,9 @@ class ExpertConfig:
 
 
 class GcsExpert:
-    def __init__(self, planner: GcsPlanner, fps: float, config: ExpertConfig | None = None,
-                 speeds: Speeds | None = None):
+    def __init__(
+        self, planner: GcsPlanner, fps: float, config: ExpertConfig | None = None, speeds: Speeds | None = None
+    ):
         self.planner, self.fps = planner, fps
         self.config = config or ExpertConfig()
         self.speeds = speeds or Speeds()
@@ -51,10 +54,16 @@ class GcsExpert:
         """The first plan of the episode (the open-loop plan)."""
         return self.plans[0] if self.plans else None
 
-    def reset(self, box, finger, goal=None) -> Plan:
+    def reset(self, obs, info: dict, seed: int | None = None) -> None:
+        """Plan from the episode's initial state (the seed is unused: the experts are deterministic)."""
         self.plans, self.plan_time_s, self._steps = [], 0.0, 0
-        self._goal = goal
-        return self._replan(box, finger)
+        self._goal = info["goal"]
+        self._replan(info["box"], info["finger"])
+        self._initial_plan_time_s = self.plan_time_s
+
+    def episode_summary(self) -> dict:
+        # Paper IV-B: the plan made before execution is plan time; replanning during it is run time.
+        return {"plan_time_s": self._initial_plan_time_s, "plan": self.plan, "replans": len(self.plans) - 1}
 
     def _replan(self, box, finger) -> Plan:
         box, finger = self._plannable(np.asarray(box, float), np.asarray(finger, float))
@@ -68,8 +77,9 @@ class GcsExpert:
     def _plannable(self, box, finger):
         return plannable(self.planner.scene, box, finger)
 
-    def act(self, box, finger) -> np.ndarray:
+    def act(self, obs, info: dict) -> np.ndarray:
         """The next finger command, given the measured box and finger positions."""
+        box, finger = info["box"], info["finger"]
         if self.config.mode == "closed-loop" and self._should_replan(box):
             self._replan(box, finger)
         sched = self._schedule
@@ -150,36 +160,16 @@ def chunk_regret(value: CostToGo, boxes, fingers, every: int) -> list[dict]:
     out = []
     for (k0, k1), v0, v1 in zip(zip(bounds, bounds[1:]), values, values[1:]):
         path = float(steps[k0:k1].sum())
-        out.append({"step": k0, "steps": k1 - k0, "path": path, "v_before": v0, "v_after": v1,
-                    "regret": path + v1 - v0, "box": boxes[k0].tolist(), "finger": fingers[k0].tolist()})
+        out.append(
+            {
+                "step": k0,
+                "steps": k1 - k0,
+                "path": path,
+                "v_before": v0,
+                "v_after": v1,
+                "regret": path + v1 - v0,
+                "box": boxes[k0].tolist(),
+                "finger": fingers[k0].tolist(),
+            }
+        )
     return out
-
-
-def rollout(env, expert: GcsExpert, box=None, finger=None, seed: int | None = None, on_step=None) -> dict:
-    """Run one episode of `expert` in `env` (a GcsPushBoxEnv, possibly wrapped). Returns a summary.
-
-    `on_step(obs, action, info)` is called with the observation each action was chosen from."""
-    options = None if box is None else {"box": list(box), "finger": list(finger)}
-    obs, info = env.reset(seed=seed, options=options)
-    plan = expert.reset(info["box"], info["finger"], goal=info["goal"])
-    initial_plan_time = expert.plan_time_s
-    t0 = time.perf_counter()
-    terminated = truncated = False
-    while not (terminated or truncated):
-        action = expert.act(info["box"], info["finger"])
-        if on_step is not None:
-            on_step(obs, action, info)
-        obs, _, terminated, truncated, info = env.step(action)
-    return {
-        "success": bool(info["is_success"]),
-        "final_distance": float(info["box_goal_distance"]),
-        "sim_time_s": float(info["sim_time_s"]),
-        # Paper IV-B: the plan made before execution is plan time; replanning during it is run time.
-        "run_time_s": time.perf_counter() - t0,
-        "plan_time_s": initial_plan_time,
-        "plan": plan,
-        "replans": len(expert.plans) - 1,
-        "box_final": np.asarray(info["box"]).tolist(),
-        "finger_final": np.asarray(info["finger"]).tolist(),
-        "disturbances": info.get("disturbances", []),
-    }

@@ -20,8 +20,11 @@ def _plt():
 
 
 def make_figures(cfg, out: Path, records: list[dict], ics: list[dict]) -> list[str]:
-    made = [fig6_success_map(cfg, out, records, ics), fig7_trajectories(cfg, out, records, ics),
-            fig_regret(cfg, out, records)]
+    made = [
+        fig6_success_map(cfg, out, records, ics),
+        fig7_trajectories(cfg, out, records, ics),
+        fig_regret(cfg, out, records),
+    ]
     if cfg.dataset:
         made.append(fig4_dataset_initial_images(cfg.dataset, out / "fig4_training_initial_images.png"))
     return [str(p) for p in made if p is not None]
@@ -46,7 +49,7 @@ def fig6_success_map(cfg, out: Path, records: list[dict], ics: list[dict]) -> Pa
     lim = scene.box_limit
     for ax, label in zip(axes[0], labels):
         rates = []
-        for i, ic in enumerate(ics):
+        for i in range(len(ics)):
             rs = [r[f"success_{thr2:g}"] for r in records if r["label"] == label and r["initial_condition_index"] == i]
             rates.append(np.mean(rs) if rs else np.nan)
         box = np.array([ic["box"] for ic in ics])
@@ -86,8 +89,10 @@ def fig7_trajectories(cfg, out: Path, records: list[dict], ics: list[dict], max_
         ax.add_patch(_rect(ic["box"], h, "tab:red", 0.35))
         ax.add_patch(_rect(scene.goal, h, "tab:green", 0.35))
         for j, label in enumerate(labels):
-            rec = next((r for r in records if r["label"] == label and r["initial_condition_index"] == i
-                        and r["run"] == 0), None)
+            rec = next(
+                (r for r in records if r["label"] == label and r["initial_condition_index"] == i and r["run"] == 0),
+                None,
+            )
             if rec is None:
                 continue
             finger = np.load(out / rec["trajectory"])["finger"]
@@ -95,8 +100,9 @@ def fig7_trajectories(cfg, out: Path, records: list[dict], ics: list[dict], max_
                 continue
             segs = np.stack([finger[:-1], finger[1:]], axis=1)
             thick = label == "gcs-open-loop"
-            lc = LineCollection(segs, cmap=cmaps[j % len(cmaps)], linewidths=4.0 if thick else 1.3,
-                                alpha=0.8, label=label)
+            lc = LineCollection(
+                segs, cmap=cmaps[j % len(cmaps)], linewidths=4.0 if thick else 1.3, alpha=0.8, label=label
+            )
             lc.set_array(np.linspace(0.35, 1.0, len(segs)))
             lc.set_clim(0, 1.2)
             ax.add_collection(lc)
@@ -107,8 +113,12 @@ def fig7_trajectories(cfg, out: Path, records: list[dict], ics: list[dict], max_
         ax.set_xticks([])
         ax.set_yticks([])
         ax.set_title(f"IC {i}", fontsize=9)
-    handles = [plt.Line2D([], [], color=plt.get_cmap(cmaps[j % len(cmaps)])(0.8), lw=4 if l == "gcs-open-loop" else 1.5,
-                          label=l) for j, l in enumerate(labels)]
+    handles = [
+        plt.Line2D(
+            [], [], color=plt.get_cmap(cmaps[j % len(cmaps)])(0.8), lw=4 if name == "gcs-open-loop" else 1.5, label=name
+        )
+        for j, name in enumerate(labels)
+    ]
     fig.legend(handles=handles, loc="lower center", ncol=len(labels), fontsize=8)
     fig.suptitle("Finger trajectories, brighter with time (paper Fig. 7)")
     path = out / "fig7_trajectories.png"
@@ -120,8 +130,9 @@ def fig7_trajectories(cfg, out: Path, records: list[dict], ics: list[dict], max_
 def fig_regret(cfg, out: Path, records: list[dict]) -> Path | None:
     """Cumulative regret along each run, per policy: flat lines are optimal play; a step up is a mistake,
     and where the first large one happens tells which phase (approach or push) the policy gets wrong."""
-    labels = [label for label in _variants(records) if any("regret_chunks" in r for r in records
-                                                           if r["label"] == label)]
+    labels = [
+        label for label in _variants(records) if any("regret_chunks" in r for r in records if r["label"] == label)
+    ]
     if not labels:
         return None
     plt = _plt()
@@ -145,8 +156,7 @@ def fig_regret(cfg, out: Path, records: list[dict]) -> Path | None:
     return path
 
 
-def side_by_side(videos: list[Path], labels: list[str], out: Path, gif: Path | None = None,
-                 gif_every: int = 3) -> Path:
+def side_by_side(videos: list[Path], labels: list[str], out: Path, gif: Path | None = None, gif_every: int = 3) -> Path:
     """One video of several rollouts from the same initial condition, side by side and in step (a run
     that ends first holds its last frame), each under its label; optionally a GIF for the README."""
     import av
@@ -165,8 +175,16 @@ def side_by_side(videos: list[Path], labels: list[str], out: Path, gif: Path | N
         for clip, label in zip(clips, labels):
             img = np.ascontiguousarray(clip[min(k, len(clip) - 1)])
             done = k >= len(clip) - 1
-            cv2.putText(img, label + (" (done)" if done else ""), (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55,
-                        (0, 0, 0), 1, cv2.LINE_AA)
+            cv2.putText(
+                img,
+                label + (" (done)" if done else ""),
+                (8, 22),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.55,
+                (0, 0, 0),
+                1,
+                cv2.LINE_AA,
+            )
             tiles.append(img)
         frames.append(np.hstack(tiles))
     from lerobot_gcs_push.evaluation import write_video
@@ -176,8 +194,14 @@ def side_by_side(videos: list[Path], labels: list[str], out: Path, gif: Path | N
         from PIL import Image
 
         small = [Image.fromarray(f).resize((f.shape[1] // 2, f.shape[0] // 2)) for f in frames[::gif_every]]
-        small[0].save(gif, save_all=True, append_images=small[1:], duration=int(1000 * gif_every / Scene.fps),
-                      loop=0, optimize=True)
+        small[0].save(
+            gif,
+            save_all=True,
+            append_images=small[1:],
+            duration=int(1000 * gif_every / Scene.fps),
+            loop=0,
+            optimize=True,
+        )
     return out
 
 
@@ -192,8 +216,11 @@ def fig4_dataset_initial_images(dataset: str, path: Path) -> Path:
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     p = Path(dataset)
-    ds = (LeRobotDataset(p.name, root=p, video_backend="pyav") if p.is_dir()
-          else LeRobotDataset(dataset, video_backend="pyav"))
+    ds = (
+        LeRobotDataset(p.name, root=p, video_backend="pyav")
+        if p.is_dir()
+        else LeRobotDataset(dataset, video_backend="pyav")
+    )
     starts = np.asarray(ds.meta.episodes["dataset_from_index"])
     imgs, boxes = [], []
     for s in starts:

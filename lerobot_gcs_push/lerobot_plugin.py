@@ -42,9 +42,7 @@ class GcsPushEnvConfig(EnvConfig):
         if self.obs_type != "pixels_agent_pos":
             # LeRobot's preprocess_observation only understands dict observations.
             raise ValueError(f"gcs_push supports obs_type='pixels_agent_pos' only, got {self.obs_type!r}")
-        self.features["pixels"] = PolicyFeature(
-            type=FeatureType.VISUAL, shape=(self.image_size, self.image_size, 3)
-        )
+        self.features["pixels"] = PolicyFeature(type=FeatureType.VISUAL, shape=(self.image_size, self.image_size, 3))
 
     @property
     def package_name(self) -> str:

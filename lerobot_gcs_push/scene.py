@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Callable, Iterator
 
 import numpy as np
 
@@ -70,8 +70,17 @@ class Scene:
     disturbances: Disturbances = field(default_factory=Disturbances)
 
     def __post_init__(self) -> None:
-        for name in ("box_size", "box_mass", "box_damping", "finger_radius", "finger_mass", "time_step",
-                     "success_threshold", "box_init_half_width", "finger_init_half_width"):
+        for name in (
+            "box_size",
+            "box_mass",
+            "box_damping",
+            "finger_radius",
+            "finger_mass",
+            "time_step",
+            "success_threshold",
+            "box_init_half_width",
+            "finger_init_half_width",
+        ):
             if not getattr(self, name) > 0:
                 raise ValueError(f"Scene.{name} must be positive, got {getattr(self, name)!r}")
         if len(self.goal) != 2 or not all(math.isfinite(g) for g in self.goal):
@@ -125,7 +134,7 @@ class Scene:
     def goal_array(self) -> np.ndarray:
         return np.asarray(self.goal, dtype=float)
 
-    def with_goal(self, goal) -> "Scene":
+    def with_goal(self, goal) -> Scene:
         return dataclasses.replace(self, goal=(float(goal[0]), float(goal[1])))
 
     # Geometry shared by the planner, the env's input checks and the tests.
@@ -136,22 +145,24 @@ class Scene:
         inside = min(max(d[0], d[1]), 0.0)
         return float(outside + inside - self.finger_radius)
 
-    def validate_state(self, box, finger, *, what: str = "initial condition",
-                       box_limit: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def validate_state(
+        self, box, finger, *, what: str = "initial condition", box_limit: float | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Return (box, finger) as arrays, or raise a ValueError that names the violation."""
         box = _vector2(box, f"{what}: box")
         finger = _vector2(finger, f"{what}: finger")
         box_limit = self.box_limit if box_limit is None else box_limit
         if np.max(np.abs(box)) > box_limit + 1e-9:
-            raise ValueError(f"{what}: box {box.tolist()} lies outside the box workspace "
-                             f"|x|,|y| <= {box_limit}")
+            raise ValueError(f"{what}: box {box.tolist()} lies outside the box workspace |x|,|y| <= {box_limit}")
         if np.max(np.abs(finger)) > self.finger_limit + 1e-9:
-            raise ValueError(f"{what}: finger {finger.tolist()} lies outside the finger workspace "
-                             f"|x|,|y| <= {self.finger_limit}")
+            raise ValueError(
+                f"{what}: finger {finger.tolist()} lies outside the finger workspace |x|,|y| <= {self.finger_limit}"
+            )
         gap = self.finger_box_gap(box, finger)
         if gap < -1e-9:  # touching counts as valid, whatever the rounding of box - contact distance
-            raise ValueError(f"{what}: finger {finger.tolist()} overlaps the box {box.tolist()} "
-                             f"(penetration {-gap:.3f} m)")
+            raise ValueError(
+                f"{what}: finger {finger.tolist()} overlaps the box {box.tolist()} (penetration {-gap:.3f} m)"
+            )
         return box, finger
 
     def box_goal_distance(self, box) -> float:
@@ -293,7 +304,7 @@ def load_initial_conditions(path) -> list[dict]:
     except json.JSONDecodeError as err:
         raise ValueError(f"initial-conditions file {str(path)!r} is not valid JSON: {err}") from None
     if not isinstance(data, list):
-        raise ValueError(f"{str(path)!r} must hold a JSON list of {{\"box\": [x, y], \"finger\": [x, y]}}")
+        raise ValueError(f'{str(path)!r} must hold a JSON list of {{"box": [x, y], "finger": [x, y]}}')
     out = []
     for i, item in enumerate(data):
         try:
@@ -301,8 +312,9 @@ def load_initial_conditions(path) -> list[dict]:
             if len(box) != 2 or len(finger) != 2:
                 raise ValueError
         except (KeyError, TypeError, ValueError):
-            raise ValueError(f"{str(path)!r} entry {i} must be {{\"box\": [x, y], \"finger\": [x, y]}}, "
-                             f"got {item!r}") from None
+            raise ValueError(
+                f'{str(path)!r} entry {i} must be {{"box": [x, y], "finger": [x, y]}}, got {item!r}'
+            ) from None
         out.append({**item, "box": box, "finger": finger})
     return out
 

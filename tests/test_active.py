@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -75,8 +74,15 @@ def test_chunk_regret_bookkeeping_on_a_hand_computed_case():
 
 def _record(success, regrets, box=(3.0, 0.0), finger=(2.0, 0.0), policy="policies/x", ic=0):
     chunks = [[8 * k, r, box[0] + 0.01 * k, box[1], finger[0], finger[1] + 0.01 * k] for k, r in enumerate(regrets)]
-    return {"policy": policy, "label": "dp:x", "disturbances": False, "initial_condition_index": ic, "run": 0,
-            "success": success, "regret_chunks": chunks}
+    return {
+        "policy": policy,
+        "label": "dp:x",
+        "disturbances": False,
+        "initial_condition_index": ic,
+        "run": 0,
+        "success": success,
+        "regret_chunks": chunks,
+    }
 
 
 def test_branch_states_pick_mistakes_cap_them_over_time_and_skip_what_cannot_start(tmp_path):
@@ -100,8 +106,9 @@ def test_collect_records_the_expert_from_the_policy_states(tmp_path):
     """Episodes start at the branch states (the images are rendered there) and reach the goal."""
     runs = [_record(False, [0.1, 0.6, 0.7], box=(2.5, -1.0), finger=(1.0, 1.5))]
     (tmp_path / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in runs))
-    cfg = CollectConfig(rollouts=[str(tmp_path)], repo_id="local/test_active", root=str(tmp_path / "ds"),
-                        keep_fraction=0.0, workers=1)
+    cfg = CollectConfig(
+        rollouts=[str(tmp_path)], repo_id="local/test_active", root=str(tmp_path / "ds"), keep_fraction=0.0, workers=1
+    )
     report, states = collect(cfg)
     assert len(states) == 2 and report.episodes == 2 and report.failures == 0
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
@@ -126,8 +133,18 @@ def test_the_optimal_plan_has_no_regret_along_its_own_path(tmp_path):
     from lerobot_gcs_push.planner import GcsPlanner
 
     out = tmp_path / "eval"
-    evaluate(EvaluateConfig(policies=["gcs-open-loop"], sampler="hard", seed=3000, num_initial_conditions=4,
-                            runs=1, timeout_s=60.0, output_dir=str(out), videos=0))
+    evaluate(
+        EvaluateConfig(
+            policies=["gcs-open-loop"],
+            sampler="hard",
+            seed=3000,
+            num_initial_conditions=4,
+            runs=1,
+            timeout_s=60.0,
+            output_dir=str(out),
+            videos=0,
+        )
+    )
     planner = GcsPlanner(SCENE, goal_tolerance=SCENE.success_threshold / np.sqrt(2))
     for rec in read_runs(out / "runs.jsonl"):
         assert rec["success"]

@@ -12,6 +12,7 @@ from gymnasium.utils.env_checker import check_env
 import lerobot_gcs_push  # noqa: F401  (registers the env ids)
 from lerobot_gcs_push.env import ENV_ID, DisturbanceSchedule, GcsPushBoxEnv, register_envs
 from lerobot_gcs_push.scene import Disturbances, Scene
+from lerobot_gcs_push.sim import TopDownCamera
 
 SCENE = Scene()
 
@@ -25,7 +26,7 @@ def env():
 
 def hold(env, target, seconds):
     for _ in range(round(seconds * env.fps)):
-        obs, reward, terminated, truncated, info = env.step(np.asarray(target, float))
+        *_, info = env.step(np.asarray(target, float))
     return info
 
 
@@ -79,7 +80,7 @@ def test_actions_outside_the_action_space_are_clipped_to_it():
 def test_truncation_success_and_info():
     e = GcsPushBoxEnv(fps=20, max_sim_time_s=0.2, goal=(1.0, 1.0), render_size=96)
     assert e._max_episode_steps == 4 and e.metadata["render_fps"] == 20
-    obs, info = e.reset(options={"box": [1.05, 1.0], "finger": [-3.0, -3.0]})
+    _, info = e.reset(options={"box": [1.05, 1.0], "finger": [-3.0, -3.0]})
     assert info["is_success"] and info["box_goal_distance"] == pytest.approx(0.05)
     assert set(info) >= {"is_success", "box_goal_distance", "box", "finger", "sim_time_s", "disturbances", "goal"}
     np.testing.assert_array_equal(info["goal"], [1.0, 1.0])
@@ -133,6 +134,11 @@ def test_plant_has_four_positions_and_box_never_rotates(env):
     np.testing.assert_array_equal(env.sim.box_pose().rotation().matrix(), np.eye(3))
     assert env.sim.box_pose().translation()[2] == SCENE.box_half
     assert np.linalg.norm(env.sim.box_position() - box) > 0.3  # it was pushed
+
+
+def test_diagram_inputs_are_found_by_name(env):
+    assert env.sim.diagram.GetInputPort("finger_command").size() == 2  # finger (x, y)
+    assert env.sim.diagram.GetInputPort("applied_force").size() == 4  # one per plant velocity
 
 
 def test_push_moves_box_one_metre(env):
@@ -245,6 +251,14 @@ def test_pixel_mapping_spans_the_view_edge_to_edge(env):
     assert blob_centroid(corner).min() > 384 - 2 * SCENE.finger_radius / (2 * v) * 384
 
 
+def test_top_down_camera_maps_a_non_square_image_edge_to_edge():
+    camera, v = TopDownCamera(SCENE, (48, 96)), SCENE.view_half_width
+    info = camera.camera_info()
+    assert (info.height(), info.width()) == (48, 96) and (info.center_y(), info.center_x()) == (24, 48)
+    np.testing.assert_allclose(camera.world_to_pixel([[-v, v], [v, -v]]), [[-0.5, -0.5], [47.5, 95.5]])
+    np.testing.assert_allclose(camera.pixel_to_world(camera.world_to_pixel([1.2, -3.4], z=0), z=0), [1.2, -3.4])
+
+
 def test_render_image_is_larger_and_consistent(env):
     box = np.array([-2.0, 1.0])
     env.reset(options={"box": box, "finger": [3.0, -3.0]})
@@ -273,8 +287,10 @@ def test_disturbance_schedule_matches_the_protocol():
     episodes = run_schedules(n_episodes, n_ticks)
     counts = np.array([len(started) for started, _ in episodes])
     # Count: min(Binomial(n_ticks, p), max_count) (a disturbance starting in the last ticks still counts).
-    pmf = [math.comb(n_ticks, k) * p.probability_per_tick**k * (1 - p.probability_per_tick) ** (n_ticks - k)
-           for k in range(p.max_count)]
+    pmf = [
+        math.comb(n_ticks, k) * p.probability_per_tick**k * (1 - p.probability_per_tick) ** (n_ticks - k)
+        for k in range(p.max_count)
+    ]
     expected = sum(k * pk for k, pk in enumerate(pmf)) + p.max_count * (1 - sum(pmf))
     assert counts.max() == p.max_count
     assert abs(counts.mean() - expected) < 4 * counts.std() / math.sqrt(n_episodes)
@@ -328,14 +344,17 @@ def test_wrong_action_shape_raises(env):
         env.step(np.zeros(3))
 
 
-@pytest.mark.parametrize("options, message", [
-    ({"box": [0.0, 0.0], "finger": [0.5, 0.0]}, "overlaps the box"),
-    ({"box": [0.0, 0.0], "finger": [0.7, 0.7]}, "overlaps the box"),  # near the corner: sphere vs. edge
-    ({"box": [5.0, 0.0], "finger": [0.0, 0.0]}, "outside the box workspace"),
-    ({"box": [0.0, 0.0], "finger": [0.0, -7.0]}, "outside the finger workspace"),
-    ({"box": [0.0, np.nan], "finger": [3.0, 3.0]}, "finite"),
-    ({"box": [0.0, 0.0]}, "finger must be a pair"),
-])
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"box": [0.0, 0.0], "finger": [0.5, 0.0]}, "overlaps the box"),
+        ({"box": [0.0, 0.0], "finger": [0.7, 0.7]}, "overlaps the box"),  # near the corner: sphere vs. edge
+        ({"box": [5.0, 0.0], "finger": [0.0, 0.0]}, "outside the box workspace"),
+        ({"box": [0.0, 0.0], "finger": [0.0, -7.0]}, "outside the finger workspace"),
+        ({"box": [0.0, np.nan], "finger": [3.0, 3.0]}, "finite"),
+        ({"box": [0.0, 0.0]}, "finger must be a pair"),
+    ],
+)
 def test_bad_initial_conditions_raise(env, options, message):
     with pytest.raises(ValueError, match=message):
         env.reset(options=options)

@@ -42,13 +42,20 @@ def tiny_dataset(lerobot_home) -> Path:
 def _run(args: list[str], home: Path, cwd: Path, timeout: float = 600) -> subprocess.CompletedProcess:
     # One OpenMP thread: the models here are tiny, and on a small machine shared with other jobs a
     # second spinning thread per process slows everything down many times over.
-    env = {**os.environ, "HF_HUB_OFFLINE": "1", "HF_LEROBOT_HOME": str(home), "MPLBACKEND": "Agg",
-           "WANDB_MODE": "disabled", "OMP_NUM_THREADS": "1"}
+    env = {
+        **os.environ,
+        "HF_HUB_OFFLINE": "1",
+        "HF_LEROBOT_HOME": str(home),
+        "MPLBACKEND": "Agg",
+        "WANDB_MODE": "disabled",
+        "OMP_NUM_THREADS": "1",
+    }
     env.pop("PYTHONPATH", None)  # only the installed distribution may provide the plugin
     proc = subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
     if proc.returncode != 0:
-        pytest.fail(f"{' '.join(map(str, args))} failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n"
-                    f"{proc.stderr[-6000:]}")
+        pytest.fail(
+            f"{' '.join(map(str, args))} failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-6000:]}"
+        )
     return proc
 
 
@@ -57,10 +64,23 @@ def checkpoint(tiny_dataset, lerobot_home, tmp_path_factory) -> Path:
     """A 2-step run of the CPU preset with a tiny U-Net, through the real lerobot-train."""
     work = tmp_path_factory.mktemp("train")
     out = work / "run"
-    _run([str(BIN / "lerobot-train"), f"--config_path={CPU_PRESET}", f"--dataset.repo_id={REPO_ID}",
-          "--steps=2", "--batch_size=2", "--num_workers=0", "--policy.down_dims=[32,64]",
-          "--env_eval_freq=0", "--save_freq=2", "--log_freq=1", f"--output_dir={out}"],
-         home=lerobot_home, cwd=work)
+    _run(
+        [
+            str(BIN / "lerobot-train"),
+            f"--config_path={CPU_PRESET}",
+            f"--dataset.repo_id={REPO_ID}",
+            "--steps=2",
+            "--batch_size=2",
+            "--num_workers=0",
+            "--policy.down_dims=[32,64]",
+            "--env_eval_freq=0",
+            "--save_freq=2",
+            "--log_freq=1",
+            f"--output_dir={out}",
+        ],
+        home=lerobot_home,
+        cwd=work,
+    )
     return out / "checkpoints" / "last" / "pretrained_model"
 
 
@@ -126,10 +146,10 @@ def test_env_config_files_decode(path):
 @pytest.mark.parametrize("path", [CPU_PRESET, PAPER_PRESET], ids=lambda p: p.stem)
 def test_policy_presets(path):
     import draccus
+    import lerobot.policies  # noqa: F401
     from lerobot.configs.policies import PreTrainedConfig
     from lerobot.envs.configs import EnvConfig
 
-    import lerobot.policies  # noqa: F401
     import lerobot_gcs_push.lerobot_plugin  # noqa: F401
 
     raw = json.loads(path.read_text())
@@ -149,26 +169,28 @@ def test_policy_presets(path):
 
 # --- LeRobot's discovery and CLIs ----------------------------------------------------------------------
 def test_discovered_by_lerobot(tmp_path):
-    code = ("from lerobot.utils.import_utils import register_third_party_plugins\n"
-            "register_third_party_plugins()\n"
-            "from lerobot.envs.configs import EnvConfig\n"
-            "assert 'gcs_push' in EnvConfig.get_known_choices(), EnvConfig.get_known_choices()\n")
+    code = (
+        "from lerobot.utils.import_utils import register_third_party_plugins\n"
+        "register_third_party_plugins()\n"
+        "from lerobot.envs.configs import EnvConfig\n"
+        "assert 'gcs_push' in EnvConfig.get_known_choices(), EnvConfig.get_known_choices()\n"
+    )
     _run([sys.executable, "-c", code], home=tmp_path, cwd=tmp_path)
 
 
 def test_dataset_through_lerobot_factory(tiny_dataset):
     import draccus
+    import lerobot.policies  # noqa: F401
     import torch
     from lerobot.configs.default import DatasetConfig
     from lerobot.configs.policies import PreTrainedConfig
     from lerobot.configs.train import TrainPipelineConfig
     from lerobot.datasets.factory import make_dataset
 
-    import lerobot.policies  # noqa: F401
-
     policy = draccus.decode(PreTrainedConfig, json.loads(CPU_PRESET.read_text())["policy"])
-    cfg = TrainPipelineConfig(dataset=DatasetConfig(repo_id=REPO_ID, root=str(tiny_dataset), video_backend="pyav"),
-                              policy=policy)
+    cfg = TrainPipelineConfig(
+        dataset=DatasetConfig(repo_id=REPO_ID, root=str(tiny_dataset), video_backend="pyav"), policy=policy
+    )
     dataset = make_dataset(cfg)
     assert dataset.num_episodes == 2 and dataset.fps == 10
     item = dataset[0]
@@ -203,10 +225,21 @@ def _check_success_matches_reward(out):
 @pytest.mark.slow
 def test_lerobot_eval_cli(checkpoint, lerobot_home, tmp_path):
     out = tmp_path / "eval"
-    _run([str(BIN / "lerobot-eval"), f"--policy.path={checkpoint}", f"--config_path={ENV_CONFIGS[0]}",
-          "--env.episode_length=30", "--eval.n_episodes=1", "--eval.batch_size=1",
-          "--eval.use_async_envs=false", "--policy.device=cpu", f"--output_dir={out}"],
-         home=lerobot_home, cwd=tmp_path)
+    _run(
+        [
+            str(BIN / "lerobot-eval"),
+            f"--policy.path={checkpoint}",
+            f"--config_path={ENV_CONFIGS[0]}",
+            "--env.episode_length=30",
+            "--eval.n_episodes=1",
+            "--eval.batch_size=1",
+            "--eval.use_async_envs=false",
+            "--policy.device=cpu",
+            f"--output_dir={out}",
+        ],
+        home=lerobot_home,
+        cwd=tmp_path,
+    )
     overall = _eval_info(out)
     assert overall["n_episodes"] == 1
     _check_success_matches_reward(out)
@@ -216,10 +249,21 @@ def test_lerobot_eval_cli(checkpoint, lerobot_home, tmp_path):
 def test_lerobot_eval_cli_async_disturbances(checkpoint, lerobot_home, tmp_path):
     """lerobot-eval's default AsyncVectorEnv: each env is built in a forkserver worker."""
     out = tmp_path / "eval"
-    _run([str(BIN / "lerobot-eval"), f"--policy.path={checkpoint}", "--env.type=gcs_push",
-          "--env.disturbances=true", "--env.episode_length=10", "--eval.n_episodes=2", "--eval.batch_size=2",
-          "--policy.device=cpu", f"--output_dir={out}"],
-         home=lerobot_home, cwd=tmp_path)
+    _run(
+        [
+            str(BIN / "lerobot-eval"),
+            f"--policy.path={checkpoint}",
+            "--env.type=gcs_push",
+            "--env.disturbances=true",
+            "--env.episode_length=10",
+            "--eval.n_episodes=2",
+            "--eval.batch_size=2",
+            "--policy.device=cpu",
+            f"--output_dir={out}",
+        ],
+        home=lerobot_home,
+        cwd=tmp_path,
+    )
     overall = _eval_info(out)
     assert overall["n_episodes"] == 2
     _check_success_matches_reward(out)
@@ -234,8 +278,17 @@ def test_gcs_push_evaluate_runs_a_lerobot_checkpoint(checkpoint, tmp_path):
     from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate, read_runs
 
     out = tmp_path / "eval"
-    summary = evaluate(EvaluateConfig(policies=[str(checkpoint)], num_initial_conditions=2, runs=1,
-                                      disturbances=True, timeout_s=3.0, output_dir=str(out), videos=0))
+    summary = evaluate(
+        EvaluateConfig(
+            policies=[str(checkpoint)],
+            num_initial_conditions=2,
+            runs=1,
+            disturbances=True,
+            timeout_s=3.0,
+            output_dir=str(out),
+            videos=0,
+        )
+    )
     recs = read_runs(out / "runs.jsonl")
     assert len(recs) == 4  # 2 ICs x (without, with disturbances)
     assert {r["disturbances"] for r in recs} == {False, True}

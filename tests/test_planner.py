@@ -34,8 +34,9 @@ def ics():
 def solved(planner, ics):
     out = []
     for ic in ics:
-        out.append((ic, planner.plan(ic.box, ic.finger, method="relaxation"),
-                    planner.plan(ic.box, ic.finger, method="micp")))
+        out.append(
+            (ic, planner.plan(ic.box, ic.finger, method="relaxation"), planner.plan(ic.box, ic.finger, method="micp"))
+        )
     return out
 
 
@@ -130,12 +131,15 @@ def test_finger_in_the_corner_nook_escapes_first():
     np.testing.assert_allclose(plan.box_final, SCENE.goal, atol=1e-5)
 
 
-@pytest.mark.parametrize("box, finger, needle", [
-    ([0.0, 0.0], [0.5, 0.0], "overlaps"),
-    ([9.0, 0.0], [0.0, 3.0], "outside the box workspace"),
-    ([0.0, 0.0], [0.0, 7.0], "outside the finger workspace"),
-    ([np.nan, 0.0], [0.0, 3.0], "finite"),
-])
+@pytest.mark.parametrize(
+    "box, finger, needle",
+    [
+        ([0.0, 0.0], [0.5, 0.0], "overlaps"),
+        ([9.0, 0.0], [0.0, 3.0], "outside the box workspace"),
+        ([0.0, 0.0], [0.0, 7.0], "outside the finger workspace"),
+        ([np.nan, 0.0], [0.0, 3.0], "finite"),
+    ],
+)
 def test_bad_input_is_named(box, finger, needle):
     with pytest.raises(ValueError, match=needle):
         GcsPlanner(SCENE, compile_now=False).plan(box, finger)
@@ -182,18 +186,27 @@ def test_cli_plan_json_lines(tmp_path):
     ics = [{"box": [1.0, 2.0], "finger": [-3.0, 0.0], "note": "ignored"}, {"box": [-2.0, -1.0], "finger": [3.0, 3.0]}]
     f = tmp_path / "ics.json"
     f.write_text(json.dumps(ics))
-    out = subprocess.run([sys.executable, "-m", "lerobot_gcs_push.cli", "plan", "--initial-conditions", str(f),
-                          "--json"], capture_output=True, text=True, check=True).stdout.splitlines()
+    out = subprocess.run(
+        [sys.executable, "-m", "lerobot_gcs_push.cli", "plan", "--initial-conditions", str(f), "--json"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.splitlines()
     objs = [json.loads(line) for line in out if line.startswith("{")]
     assert len(objs) == 2
     for o in objs:
         for key in ("cost", "lower_bound", "solve_time_s", "method", "modes", "finger_waypoints", "box_final"):
             assert key in o
         np.testing.assert_allclose(o["box_final"], [0, 0], atol=1e-5)
+        assert set(o["segment_kinds"]) <= {"free", "approach", "push", "retreat"}
     assert objs[0]["finger_waypoints"][0] == [-3.0, 0.0]
 
 
 def test_cli_plan_rejects_overlap():
-    res = subprocess.run([sys.executable, "-m", "lerobot_gcs_push.cli", "plan", "--box", "0", "0", "--finger", "0.4",
-                          "0"], capture_output=True, text=True)
+    res = subprocess.run(
+        [sys.executable, "-m", "lerobot_gcs_push.cli", "plan", "--box", "0", "0", "--finger", "0.4", "0"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert res.returncode != 0 and "overlaps" in res.stderr

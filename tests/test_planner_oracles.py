@@ -1,9 +1,10 @@
 """The planner's shortest-path answers against independent GCS implementations.
 
-Drake's `GraphOfConvexSets` (its own transcription, relaxation and rounding) and, when installed,
-Tobia Marcucci's `gcsopt` (a cvxpy GCS library with a vertex-based formulation) solve the same
-mode graph for the same queries. Our MICP value is the exact optimum (SCIP picks the path, Clarabel
-solves its restriction), so:
+Drake's `GraphOfConvexSets` (its own transcription, relaxation and rounding; tests/drake_oracle.py)
+and, when installed, Tobia Marcucci's `gcsopt` (a cvxpy GCS library with a vertex-based formulation;
+it reads the vertices through the planner's own `transcription`, and does its own perspective, flow
+constraints and rounding) solve the same mode graph for the same queries. Our MICP value is the exact
+optimum (SCIP picks the path, Clarabel solves its restriction), so:
 
 * no oracle may find a cheaper path (that would mean our program cuts off feasible plans);
 * their exact answers must equal ours, and their relaxations must bound ours from below.
@@ -11,12 +12,15 @@ solves its restriction), so:
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
+from drake_oracle import build_drake_gcs, drake_options, solve_drake_gcs, solve_with_drake
 
 from lerobot_gcs_push.planner import GcsPlanner
-from lerobot_gcs_push.planner.drake_oracle import (build_drake_gcs, drake_options, planner_query,
-                                                   solve_drake_gcs, solve_with_drake)
+from lerobot_gcs_push.planner.graph import build_graph
+from lerobot_gcs_push.planner.transcription import edge_constraint, vertex_constraints, vertex_costs
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
 N_CASES = 12
@@ -32,10 +36,10 @@ def planner() -> GcsPlanner:
 
 @pytest.fixture(scope="module")
 def cases(planner):
-    """(initial condition, (src, goal, allowed, extra cost), MICP plan) for each sampled query."""
+    """(initial condition, the planner's query, MICP plan) for each sampled query."""
     out = []
     for ic in sample_initial_conditions(Scene(), N_CASES, seed=11):
-        q = planner_query(planner, ic.box, ic.finger)
+        q = planner.query(ic.box, ic.finger)
         assert q is not None, f"{ic}: box already at the goal, the oracle test needs a push"
         out.append((ic, q, planner.plan(ic.box, ic.finger, method="micp")))
     return out
@@ -47,7 +51,8 @@ def _close(a: float, b: float, rel: float) -> bool:
 
 @pytest.mark.parametrize("i", range(N_CASES))
 def test_drake_matches_micp(planner, cases, i):
-    ic, (src, goal, allowed, extra), plan = cases[i]
+    ic, q, plan = cases[i]
+    src, goal, allowed, extra = q.src, q.goal, q.allowed, q.extra_cost
     ours = plan.cost
     # One SolveShortestPath call: relaxation + Drake's rounding (what the benchmark times).
     single = solve_drake_gcs(build_drake_gcs(planner.graph, src, goal, allowed), drake_options(10))
@@ -55,9 +60,11 @@ def test_drake_matches_micp(planner, cases, i):
     split = solve_with_drake(planner.graph, src, goal, allowed, max_rounded_paths=10)
     # Exact: Drake's restriction of every simple path.
     exact = solve_with_drake(planner.graph, src, goal, allowed, relaxation=False)
-    msg = (f"{ic}: ours {ours:.6f} ({plan.modes}), Drake rounded {single.cost + extra:.6f} "
-           f"{single.vertex_names}, split {split.cost + extra:.6f}, exact {exact.cost + extra:.6f} "
-           f"{exact.vertex_names}, Drake bound {split.lower_bound + extra:.6f}")
+    msg = (
+        f"{ic}: ours {ours:.6f} ({plan.modes}), Drake rounded {single.cost + extra:.6f} "
+        f"{single.vertex_names}, split {split.cost + extra:.6f}, exact {exact.cost + extra:.6f} "
+        f"{exact.vertex_names}, Drake bound {split.lower_bound + extra:.6f}"
+    )
     assert np.isfinite(single.cost) and np.isfinite(exact.cost), msg
     # A cheaper Drake path would mean our formulation cuts off feasible plans.
     assert exact.cost + extra >= ours - EXACT_REL * max(1.0, ours), msg
@@ -72,54 +79,46 @@ def test_drake_matches_micp(planner, cases, i):
 
 def test_drake_push_pruning_loses_nothing(planner, cases):
     """Disabling pushes against the goal offset (edge_allowed) never removes the optimum."""
-    for ic, (src, goal, allowed, extra), plan in cases[:4]:
-        assert allowed.min() == 0.0  # something was pruned
-        full = solve_with_drake(planner.graph, src, goal, None, relaxation=False)
-        pruned = solve_with_drake(planner.graph, src, goal, allowed, relaxation=False)
+    for ic, q, _ in cases[:4]:
+        assert q.allowed.min() == 0.0  # something was pruned
+        full = solve_with_drake(planner.graph, q.src, q.goal, None, relaxation=False)
+        pruned = solve_with_drake(planner.graph, q.src, q.goal, q.allowed, relaxation=False)
         assert _close(full.cost, pruned.cost, EXACT_REL), (ic, full.cost, pruned.cost)
 
 
 def test_drake_oracle_detects_a_different_problem(planner, cases):
     """The comparison has teeth: a graph from another scene (longer transition buffer) gives Drake a
     different optimum for the same query, so a mismatch in sets or costs does not go unnoticed."""
-    from lerobot_gcs_push.planner.graph import build_graph
     other = build_graph(Scene(transition_buffer=0.3))
-    ic, (src, goal, allowed, extra), plan = cases[0]
-    res = solve_with_drake(other, src, goal, allowed, relaxation=False)
-    assert res.cost + extra > plan.cost + 0.1
+    _, q, plan = cases[0]
+    res = solve_with_drake(other, q.src, q.goal, q.allowed, relaxation=False)
+    assert res.cost + q.extra_cost > plan.cost + 0.1
 
 
 # ------------------------------------------------------------------------------------------ gcsopt
 GCSOPT_MICP_CASES = 3  # SCIP on gcsopt's (untightened) MICP takes a few seconds per query
 
 
-def _gcsopt_graph(gcsopt, graph, src, goal, allowed):
-    import cvxpy as cp
-
+def _gcsopt_graph(gcsopt, graph, q):
     G = gcsopt.GraphOfConvexSets()
-    theta = np.concatenate([src, goal])
+    theta = np.concatenate([q.src, q.goal])
     xs, vs = [], []
     for i, vert in enumerate(graph.vertices):
         v = G.add_vertex(vert.name)
         x = v.add_variable(vert.dim)
         if i == graph.source:
-            v.add_constraint(x == src)
+            v.add_constraint(x == q.src)
         elif i == graph.target:
-            v.add_constraint(x == goal)
-        else:
-            v.add_constraint(vert.A @ x <= vert.c)
-            if vert.pin_cols:
-                v.add_constraint(x[list(vert.pin_cols)] == vert.pin_S @ theta)
-        if vert.D is not None:
-            v.add_cost(cp.norm(vert.D @ x, 2))
-        if vert.g is not None:
-            v.add_cost(vert.g @ x + vert.k)
+            v.add_constraint(x == q.goal)
+        for c in vertex_constraints(vert, x, theta):
+            v.add_constraint(c)
+        for cost in vertex_costs(vert, x):
+            v.add_cost(cost)
         xs.append(x)
         vs.append(v)
     for i, e in enumerate(graph.edges):
-        if allowed[i] > 0.5:
-            edge = G.add_edge(vs[e.u], vs[e.v])
-            edge.add_constraint(e.Mu @ xs[e.u] + e.Mv @ xs[e.v] == e.h)
+        if q.allowed[i] > 0.5:
+            G.add_edge(vs[e.u], vs[e.v]).add_constraint(edge_constraint(e, xs[e.u], xs[e.v]))
     return G, vs[graph.source], vs[graph.target]
 
 
@@ -127,8 +126,7 @@ def _gcsopt_path(G, source, target):
     """Follow edges with binary value 1 from the source (disjoint zero-cost cycles are ignored)."""
     path, v = [source], source
     while v is not target:
-        nxt = [e for e in G.outgoing_edges(v) if e.binary_variable.value is not None
-               and e.binary_variable.value > 0.5]
+        nxt = [e for e in G.outgoing_edges(v) if e.binary_variable.value is not None and e.binary_variable.value > 0.5]
         assert len(nxt) == 1, f"gcsopt solution leaves {v.name} along {len(nxt)} edges"
         v = nxt[0].head
         assert v not in path, "gcsopt path revisits a vertex"
@@ -142,11 +140,11 @@ def test_gcsopt_relaxation_and_rounding(planner, cases):
     from gcsopt.graph_problems.rounding.shortest_path import single_dfs
 
     np.random.seed(0)  # gcsopt's rounding samples with numpy's global generator
-    for ic, (src, goal, allowed, extra), plan in cases:
-        G, s, t = _gcsopt_graph(gcsopt, planner.graph, src, goal, allowed)
+    for ic, q, plan in cases:
+        G, s, t = _gcsopt_graph(gcsopt, planner.graph, q)
         G.solve_shortest_path(s, t, binary=False, solver=cp.CLARABEL)
         assert G.status == cp.OPTIMAL, (ic, G.status)
-        bound = G.value + extra
+        bound = G.value + q.extra_cost
         assert bound <= plan.cost + BOUND_TOL * max(1.0, plan.cost), (ic, bound, plan.cost)
         # gcsopt's randomized_dfs, with the restriction solver named (its default would be Mosek).
         paths = []
@@ -159,10 +157,11 @@ def test_gcsopt_relaxation_and_rounding(planner, cases):
         assert paths, ic
         costs = []
         for p in paths:
-            G.solve_convex_restriction(p, [G.get_edge(a.name, b.name) for a, b in zip(p[:-1], p[1:])],
-                                       solver=cp.CLARABEL)
+            G.solve_convex_restriction(
+                p, [G.get_edge(a.name, b.name) for a, b in itertools.pairwise(p)], solver=cp.CLARABEL
+            )
             costs.append(G.value if G.status == cp.OPTIMAL else np.inf)
-        rounded = min(costs) + extra
+        rounded = min(costs) + q.extra_cost
         assert rounded >= plan.cost - EXACT_REL * max(1.0, plan.cost), (ic, rounded, plan.cost)
 
 
@@ -171,15 +170,21 @@ def test_gcsopt_micp_matches(planner, cases, i):
     gcsopt = pytest.importorskip("gcsopt")
     import cvxpy as cp
 
-    ic, (src, goal, allowed, extra), plan = cases[i]
-    G, s, t = _gcsopt_graph(gcsopt, planner.graph, src, goal, allowed)
+    ic, q, plan = cases[i]
+    extra = q.extra_cost
+    G, s, t = _gcsopt_graph(gcsopt, planner.graph, q)
     G.solve_shortest_path(s, t, binary=True, solver=cp.SCIP)
     assert G.status == cp.OPTIMAL, (ic, G.status)
     # SCIP's objective carries its feasibility tolerances on the norm cones.
     assert _close(G.value + extra, plan.cost, REL), (ic, G.value + extra, plan.cost)
     # gcsopt's path, solved exactly by its own convex restriction.
     path = _gcsopt_path(G, s, t)
-    edges = [G.get_edge(a.name, b.name) for a, b in zip(path[:-1], path[1:])]
+    edges = [G.get_edge(a.name, b.name) for a, b in itertools.pairwise(path)]
     G.solve_convex_restriction(path, edges, solver=cp.CLARABEL)
-    assert _close(G.value + extra, plan.cost, EXACT_REL), (ic, [v.name for v in path], G.value + extra,
-                                                          plan.cost, plan.modes)
+    assert _close(G.value + extra, plan.cost, EXACT_REL), (
+        ic,
+        [v.name for v in path],
+        G.value + extra,
+        plan.cost,
+        plan.modes,
+    )

@@ -40,8 +40,10 @@ for label, rs in by_label.items():
         (wrong if pushed_away else other).append(r)
     near = [r for r in other if r["final_distance"] <= args.near]
     per_ic = Counter(r["initial_condition_index"] for r in failures).most_common()
-    print(f"{label:50s} {len(rs):5d} {len(failures):5d} {len(wrong):10d} {len(other):6d} {len(near):10d}  "
-          + " ".join(f"IC{i}:{n}" for i, n in per_ic))
+    print(
+        f"{label:50s} {len(rs):5d} {len(failures):5d} {len(wrong):10d} {len(other):6d} {len(near):10d}  "
+        + " ".join(f"IC{i}:{n}" for i, n in per_ic)
+    )
 
 approach = []
 for path in sorted((args.eval_dir / "trajectories" / "gcs_open_loop").glob("*.npz")):
@@ -51,5 +53,7 @@ for path in sorted((args.eval_dir / "trajectories" / "gcs_open_loop").glob("*.np
         approach.append(moved[0] / len(box))
 if approach:
     q = np.percentile(approach, [25, 50, 75])
-    print(f"GCS open loop, fraction of frames before the box first moves ({len(approach)} rollouts): "
-          f"median {q[1]:.2f} (quartiles {q[0]:.2f}-{q[2]:.2f})")
+    print(
+        f"GCS open loop, fraction of frames before the box first moves ({len(approach)} rollouts): "
+        f"median {q[1]:.2f} (quartiles {q[0]:.2f}-{q[2]:.2f})"
+    )

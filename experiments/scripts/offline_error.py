@@ -47,8 +47,9 @@ rng = np.random.default_rng(0)
 frames = np.sort(rng.choice(valid, size=args.frames, replace=False))
 items = [ds[int(i)] for i in frames]
 targets = [np.stack([ds[int(i) + k]["action"].numpy() for k in range(EXECUTED)]) for i in frames]
-hold = float(np.mean([np.linalg.norm(t - it["observation.state"].numpy(), axis=1).mean()
-                      for t, it in zip(targets, items)]))
+hold = float(
+    np.mean([np.linalg.norm(t - it["observation.state"].numpy(), axis=1).mean() for t, it in zip(targets, items)])
+)
 
 out = args.run_dir / "offline_error.csv"
 rows = []
@@ -64,15 +65,27 @@ for ckpt in sorted((args.train_dir / "checkpoints").glob("[0-9]*")):
     for n, (item, target) in enumerate(zip(items, targets)):
         torch.manual_seed(n)
         learned.policy.reset()
-        batch = {"observation.image": item["observation.image"][None], "observation.state": item["observation.state"][None],
-                 "task": [TASK]}
+        batch = {
+            "observation.image": item["observation.image"][None],
+            "observation.state": item["observation.state"][None],
+            "task": [TASK],
+        }
         chunk = []
         with torch.inference_mode():
             for _ in range(EXECUTED):  # the first call denoises a chunk, the next ones pop it
-                chunk.append(learned.post(learned.policy.select_action(learned.pre(dict(batch)))).reshape(-1)[:2].numpy())
+                chunk.append(
+                    learned.post(learned.policy.select_action(learned.pre(dict(batch)))).reshape(-1)[:2].numpy()
+                )
         errors.append(np.linalg.norm(np.stack(chunk) - target, axis=1).mean())
-    rows.append({"step": int(ckpt.name), "frames": len(errors), "action_error_m_mean": float(np.mean(errors)),
-                 "action_error_m_median": float(np.median(errors)), "hold_baseline_m": hold})
+    rows.append(
+        {
+            "step": int(ckpt.name),
+            "frames": len(errors),
+            "action_error_m_mean": float(np.mean(errors)),
+            "action_error_m_median": float(np.median(errors)),
+            "hold_baseline_m": hold,
+        }
+    )
     print(rows[-1], flush=True)
 rows.sort(key=lambda r: r["step"])
 with open(out, "w", newline="") as f:

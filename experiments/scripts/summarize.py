@@ -32,9 +32,16 @@ for d in sorted((args.run_dir / "learning_curve").glob("step_*")):
     if s.exists():
         settings = json.loads((d / "settings.json").read_text())
         v = next(iter(json.loads(s.read_text())["variants"].values()))
-        rows.append({"step": int(d.name.split("_")[1]), "runs": v["runs"], "timeout_s": settings["timeout_s"],
-                     "success_0.1": v["success"], "success_0.2": v["success_0.2"],
-                     "success_sim_time_s": v["success_sim_time_s"]})
+        rows.append(
+            {
+                "step": int(d.name.split("_")[1]),
+                "runs": v["runs"],
+                "timeout_s": settings["timeout_s"],
+                "success_0.1": v["success"],
+                "success_0.2": v["success_0.2"],
+                "success_sim_time_s": v["success_sim_time_s"],
+            }
+        )
 with open(args.run_dir / "learning_curve.csv", "w", newline="") as f:
     w = csv.DictWriter(f, fieldnames=["step", "runs", "timeout_s", "success_0.1", "success_0.2", "success_sim_time_s"])
     w.writeheader()

@@ -11,8 +11,10 @@ norms, anything under 4096 values) and non-float tensors are kept exactly. The u
 evaluated, so a packed checkpoint's numbers are measured on the packed weights themselves; run 5 checks the
 cost on the action error (results/train/run5_scratch1200/packing.csv).
 
-    .venv/bin/python results/train/weights_int8.py pack outputs/train/X/checkpoints/005000/pretrained_model results/train/run5_scratch1200/weights
-    .venv/bin/python results/train/weights_int8.py unpack results/train/run5_scratch1200/weights outputs/train/run5_unpacked/pretrained_model
+    .venv/bin/python experiments/scripts/weights_int8.py pack \
+        outputs/train/X/checkpoints/005000/pretrained_model experiments/runs/run5_scratch1200/weights
+    .venv/bin/python experiments/scripts/weights_int8.py unpack \
+        experiments/runs/run5_scratch1200/weights outputs/train/run5_unpacked/pretrained_model
 """
 
 import argparse

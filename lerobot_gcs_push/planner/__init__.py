@@ -4,130 +4,27 @@
     plan = planner.plan(box=[2, -1], finger=[-3, 0])    # a solver call per query
     plan.cost, plan.lower_bound, plan.modes, plan.commands(fps=10)
 
-Pure optimisation: no Drake, no env.
+Pure optimisation: no Drake, no env. The modules, from data to answer: `graph` (the mode graph as numpy
+data), `transcription` (its vertices and edges as cvxpy constraints), `gcs` (the shortest-path program:
+relaxation or MICP), `rounding` and `restriction` (from flows to a path, and the path's exact optimum),
+`plan` (waypoints and their timing), `planner` (`GcsPlanner`, which runs them per query).
 """
 
-from __future__ import annotations
+from lerobot_gcs_push.planner.gcs import SolverError
+from lerobot_gcs_push.planner.graph import build_graph
+from lerobot_gcs_push.planner.plan import Plan, Schedule, SegmentKind, Speeds
+from lerobot_gcs_push.planner.planner import METHODS, GcsPlanner, Query
+from lerobot_gcs_push.planner.restriction import brute_force
 
-import time
-
-import numpy as np
-
-from lerobot_gcs_push.planner.gcs import GcsProgram, SolverError
-from lerobot_gcs_push.planner.graph import ModeGraph, build_graph
-from lerobot_gcs_push.planner.plan import FREE, Plan, Speeds, trace
-from lerobot_gcs_push.planner.restriction import RestrictionCache, brute_force
-from lerobot_gcs_push.planner.rounding import candidate_paths
-from lerobot_gcs_push.scene import Scene
-
-__all__ = ["GcsPlanner", "Plan", "Speeds", "SolverError", "METHODS", "brute_force", "build_graph"]
-
-METHODS = ("relaxation", "micp")
-
-
-class GcsPlanner:
-    def __init__(self, scene: Scene | None = None, method: str = "relaxation", structure: str = "branches",
-                 num_pushes: int = 2, rounding_trials: int = 8, seed: int = 0, goal_tolerance: float = 1e-6,
-                 compile_now: bool = True):
-        if method not in METHODS:
-            raise ValueError(f"unknown method {method!r}: choose one of {METHODS}")
-        self.scene = scene or Scene()
-        self.method = method
-        self.graph: ModeGraph = build_graph(self.scene, structure, num_pushes)
-        self.rounding_trials = rounding_trials
-        self.goal_tolerance = goal_tolerance
-        self.seed = seed
-        self._programs: dict[str, GcsProgram] = {}
-        self.restrictions = RestrictionCache(self.graph)
-        self.compile_time_s: dict[str, float] = {}
-        if compile_now:
-            self.program(method)
-
-    def program(self, method: str) -> GcsProgram:
-        """The compiled program for `method` (compiled on first use; the time is kept)."""
-        if method not in METHODS:
-            raise ValueError(f"unknown method {method!r}: choose one of {METHODS}")
-        if method not in self._programs:
-            t0 = time.perf_counter()
-            micp = method == "micp"
-            prog = GcsProgram(self.graph, integer=micp, two_cycles=micp)  # cuts pay off only in SCIP (gcs.py)
-            prog.compile()
-            self.compile_time_s[method] = time.perf_counter() - t0
-            self._programs[method] = prog
-        return self._programs[method]
-
-    def plan(self, box, finger, goal=None, method: str | None = None) -> Plan:
-        method = method or self.method
-        scene = self.scene
-        box, finger = scene.validate_state(box, finger, what="plan", box_limit=scene.box_reach)
-        goal = scene.goal_array if goal is None else np.asarray(goal, float)
-        if goal.shape != (2,) or not np.all(np.isfinite(goal)):
-            raise ValueError(f"goal must be a finite pair [x, y], got {goal!r}")
-        if np.max(np.abs(goal)) > scene.box_limit:
-            raise ValueError(f"goal {goal.tolist()} lies outside the box workspace |x|,|y| <= {scene.box_limit}")
-        t0 = time.perf_counter()
-        # Offsets below the tolerance count as reached, so that no push of zero length is planned.
-        delta = np.where(np.abs(goal - box) > self.goal_tolerance, goal - box, 0.0)
-        if not np.any(delta):
-            return self._plan_without_push(method, box, finger, goal, t0)
-        goal_eff = box + delta
-        start, prefix = self._escape(box, finger)
-        src = np.concatenate([box, start])
-        prog = self.program(method)
-        prog.set_query(src, goal_eff, self.graph.edge_allowed(delta, 0.0))
-        flows = prog.solve()
-        if method == "micp":
-            paths = candidate_paths(self.graph, flows.flows, None, 1, min_flow=0.5)
-        else:
-            # Seeded by the query, so a plan never depends on what this planner solved before.
-            rng = np.random.default_rng([self.seed, *np.frombuffer(np.r_[src, goal_eff].tobytes(), np.uint32)])
-            paths = candidate_paths(self.graph, flows.flows, rng, self.rounding_trials)
-        best = None
-        for p in paths:
-            sol = self.restrictions.solve(p, src, goal_eff)
-            if best is None or sol.rank() < best.rank():
-                best = sol
-        if best is None or not np.isfinite(best.cost):
-            raise SolverError(f"rounding found no feasible path among {len(paths)} candidates "
-                              f"(relaxation status {flows.status!r}, value {flows.value:.4f})")
-        modes, fw, bw, kinds = trace(scene, self.graph, best.vertices, best.points, box, start)
-        if prefix is not None:
-            fw = np.vstack([finger, fw])
-            bw = np.vstack([box, bw])
-            kinds = [FREE] + kinds
-            modes = ["escape"] + modes
-        extra_cost = 0.0 if prefix is None else prefix
-        # MICP: SCIP proves optimality (within its gap), so its bound is its value.
-        lower = (best.cost if method == "micp" else min(flows.value, best.cost)) + extra_cost
-        return Plan(method=method, cost=best.cost + extra_cost, lower_bound=lower,
-                    solve_time_s=time.perf_counter() - t0, modes=modes, finger_waypoints=fw,
-                    box_waypoints=bw, segment_kinds=kinds, goal=goal, candidates=len(paths),
-                    extra={"relaxation_time_s": flows.solve_time_s})
-
-    def _plan_without_push(self, method, box, finger, goal, t0) -> Plan:
-        return Plan(method=method, cost=0.0, lower_bound=0.0, solve_time_s=time.perf_counter() - t0,
-                    modes=[], finger_waypoints=finger[None].copy(), box_waypoints=box[None].copy(),
-                    segment_kinds=[], goal=goal, candidates=0)
-
-    def _escape(self, box, finger):
-        """Move a finger that sits diagonally off a box corner, inside the square |r|_inf < d where no
-        free region reaches, straight away from that corner until it is in a free region."""
-        d = self.scene.contact_distance
-        r = finger - box
-        if np.max(np.abs(r)) >= d:
-            return finger, None
-        corner = np.sign(r) * self.scene.box_half
-        u = (r - corner) / np.linalg.norm(r - corner)
-        # Smallest t with max(|corner + t u|) = d, along the outward diagonal-ish direction.
-        t = min((d - np.abs(corner[i])) / abs(u[i]) for i in range(2) if abs(u[i]) > 1e-12)
-        t_from_r = t - np.linalg.norm(r - corner)
-        start = finger + u * max(t_from_r, 0.0)
-        return start, float(np.linalg.norm(start - finger))
-
-    def warm_up(self) -> float:
-        """Compile the restriction of every simple path now, so that no query pays for it later."""
-        t0 = time.perf_counter()
-        src = np.concatenate([np.zeros(2), [0.0, -2.0]])
-        for p in self.graph.simple_paths():
-            self.restrictions.solve(p, src, np.array([1.0, 1.0]))
-        return time.perf_counter() - t0
+__all__ = [
+    "METHODS",
+    "GcsPlanner",
+    "Plan",
+    "Query",
+    "Schedule",
+    "SegmentKind",
+    "SolverError",
+    "Speeds",
+    "brute_force",
+    "build_graph",
+]

@@ -12,8 +12,9 @@ and push edges whose direction disagrees with the goal offset get an upper bound
 The two-cycle constraints of Drake's GraphOfConvexSets (`two_cycles=True`) change no relaxation bound
 on this graph (20 instances: median gap 5.97% with and without) and add 60% to Clarabel's time, so the
 relaxation leaves them out; but they are valid cuts that SCIP uses well: MICP median 0.44 s with them
-against 1.14 s without (p95 0.75 s against 4.1 s, 16 instances, same optima), so the MICP keeps them. The remaining gap comes from the finger's route splitting
-around both sides of the box; randomized rounding recovers the optimum (tests/test_planner.py).
+against 1.14 s without (p95 0.75 s against 4.1 s, 16 instances, same optima), so the MICP keeps them.
+The remaining gap comes from the finger's route splitting around both sides of the box; randomized
+rounding recovers the optimum (tests/test_planner.py).
 
 The graph is fixed, so the initial state, the goal and the edge bounds are cvxpy Parameters and the
 program is compiled once (DPP); a new query is only a solver call.
@@ -27,7 +28,8 @@ from dataclasses import dataclass
 import cvxpy as cp
 import numpy as np
 
-from lerobot_gcs_push.planner.graph import ModeGraph
+from lerobot_gcs_push.planner.graph import ModeGraph, VertexKind
+from lerobot_gcs_push.planner.transcription import edge_constraint, in_set, vertex_constraints, vertex_costs
 
 
 class SolverError(RuntimeError):
@@ -38,7 +40,6 @@ class SolverError(RuntimeError):
 class FlowSolution:
     value: float
     flows: np.ndarray  # y per edge
-    points: dict[int, np.ndarray]  # vertex -> x_v recovered from the dominant incoming copy
     solve_time_s: float
     status: str
 
@@ -51,7 +52,7 @@ class GcsProgram:
         nE = len(E)
         self.src = cp.Parameter(V[graph.source].dim, name="source")
         self.goal = cp.Parameter(V[graph.target].dim, name="goal")
-        theta = cp.hstack([self.src, self.goal])
+        theta = cp.hstack([self.src, self.goal])  # graph.Theta
         self.allowed = cp.Parameter(nE, nonneg=True, name="allowed")
         self.y = cp.Variable(nE, boolean=True) if integer else cp.Variable(nE, nonneg=True)
         y = self.y
@@ -63,12 +64,9 @@ class GcsProgram:
 
         cons: list[cp.Constraint] = [y <= self.allowed]
         for i, e in enumerate(E):
-            for copy, vert in ((self.z[i], V[e.u]), (self.w[i], V[e.v])):
-                if vert.A.shape[0] and isinstance(copy, cp.Variable):
-                    cons.append(vert.A @ copy <= vert.c * y[i])
-                if vert.pin_cols and isinstance(copy, cp.Variable):
-                    cons.append(copy[list(vert.pin_cols)] == y[i] * (vert.pin_S @ theta))
-            cons.append(e.Mu @ self.z[i] + e.Mv @ self.w[i] == e.h * y[i])
+            cons += vertex_constraints(V[e.u], self.z[i], theta, y[i])
+            cons += vertex_constraints(V[e.v], self.w[i], theta, y[i])
+            cons.append(edge_constraint(e, self.z[i], self.w[i], y[i]))
 
         ins = {v: graph.in_edges(v) for v in range(len(V))}
         outs = {v: graph.out_edges(v) for v in range(len(V))}
@@ -83,11 +81,9 @@ class GcsProgram:
             phi_in = cp.sum(y[ins[v]])
             cons += [phi_in == cp.sum(y[outs[v]]), phi_in <= 1]
             cons.append(sum(self.w[i] for i in ins[v]) == sum(self.z[i] for i in outs[v]))
-            if vert.D is not None:  # norms are homogeneous: their perspective is the norm itself
-                cost_terms += [cp.norm(vert.D @ self.w[i], 2) for i in ins[v]]
-            if vert.g is not None:
-                cost_terms += [vert.g @ self.w[i] + vert.k * y[i] for i in ins[v]]
-            if two_cycles and vert.kind == "free":
+            for i in ins[v]:
+                cost_terms += vertex_costs(vert, self.w[i], y[i])
+            if two_cycles and vert.kind == VertexKind.FREE:
                 cons += self._two_cycles(v, ins[v], outs[v])
         self.problem = cp.Problem(cp.Minimize(sum(cost_terms)), cons)
         assert self.problem.is_dcp(dpp=True), "GCS program must be DPP so that queries skip compilation"
@@ -105,7 +101,8 @@ class GcsProgram:
                 if E[j].v == u:
                     rest = phi - y[i] - y[j]
                     cons.append(rest >= 0)
-                    cons.append(vert.A @ (total_in - self.w[i] - self.z[j]) <= vert.c * rest)
+                    # The pins need no cut: those of each copy imply them.
+                    cons += in_set(vert, total_in - self.w[i] - self.z[j], rest)
         return cons
 
     def set_query(self, src: np.ndarray, goal: np.ndarray, allowed: np.ndarray) -> None:
@@ -117,8 +114,9 @@ class GcsProgram:
         """Canonicalise once (with placeholder parameters); returns the compile time."""
         if self.src.value is None:
             V = self.graph.vertices
-            self.set_query(np.zeros(V[self.graph.source].dim), np.zeros(V[self.graph.target].dim),
-                           np.ones(len(self.graph.edges)))
+            self.set_query(
+                np.zeros(V[self.graph.source].dim), np.zeros(V[self.graph.target].dim), np.ones(len(self.graph.edges))
+            )
         t0 = time.perf_counter()
         self.problem.get_problem_data(self._solver(), ignore_dpp=False)
         self.compile_time_s = time.perf_counter() - t0
@@ -137,20 +135,8 @@ class GcsProgram:
         elapsed = time.perf_counter() - t0
         status = self.problem.status
         if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
-            raise SolverError(f"{solver} returned status {status!r} on the GCS "
-                              f"{'MICP' if self.integer else 'relaxation'}")
+            raise SolverError(
+                f"{solver} returned status {status!r} on the GCS {'MICP' if self.integer else 'relaxation'}"
+            )
         flows = np.clip(np.asarray(self.y.value, float), 0.0, 1.0)
-        return FlowSolution(float(self.problem.value), flows, self._points(flows), elapsed, status)
-
-    def _points(self, flows: np.ndarray) -> dict[int, np.ndarray]:
-        """x_v = w_e / y_e for each vertex's largest incoming flow (exact on an integral solution)."""
-        pts: dict[int, np.ndarray] = {}
-        g = self.graph
-        for v in range(len(g.vertices)):
-            if v in (g.source, g.target):
-                continue
-            ins = g.in_edges(v)
-            i = max(ins, key=lambda k: flows[k])
-            if flows[i] > 1e-6:
-                pts[v] = np.asarray(self.w[i].value, float) / flows[i]
-        return pts
+        return FlowSolution(float(self.problem.value), flows, elapsed, status)

@@ -1,8 +1,8 @@
 """The finger-box mode graph, as plain numpy data.
 
-One description serves three solvers: the cvxpy GCS program (`gcs.py`), the brute-force oracle that
-solves the convex restriction of every path (`restriction.py`), and Drake's `GraphOfConvexSets`
-(`drake_oracle.py`). Nothing here knows about a solver.
+One description serves every solver: the cvxpy GCS program (`gcs.py`) and the convex restriction of a
+path (`restriction.py`), both through `transcription.py`, and the oracles in the tests (Drake's
+`GraphOfConvexSets`, gcsopt). Nothing here knows about a solver.
 
 Geometry (relative position r = finger - box, contact distance d = box half-size + finger radius,
 buffer t = the paper's transition buffer):
@@ -33,48 +33,112 @@ buffer t = the paper's transition buffer):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import StrEnum
 
 import numpy as np
 
 from lerobot_gcs_push.scene import Scene
 
-FACES = ("L", "R", "T", "B")
-# Push direction when the finger is on that face (it pushes the box away from itself).
-NORMALS = {"L": np.array([1.0, 0.0]), "R": np.array([-1.0, 0.0]),
-           "T": np.array([0.0, -1.0]), "B": np.array([0.0, 1.0])}
-AXIS = {"L": 0, "R": 0, "T": 1, "B": 1}
-ADJACENT = {"L": ("T", "B"), "R": ("T", "B"), "T": ("L", "R"), "B": ("L", "R")}
-
-# Variable layouts.
-FREE_DIM = 6  # box (2), finger start (2), finger end (2)
-PUSH_DIM = 4  # box before (2), box after (2)
-SOURCE_DIM = 4  # box, finger (fixed by parameters)
-TARGET_DIM = 2  # box (fixed to the goal)
-THETA_DIM = 6  # the query: initial box, initial finger, goal
+X, Y = 0, 1  # the coordinates of a planar position
 
 
-def _theta_rows(*cols: int) -> np.ndarray:
-    """Selection of theta entries: e.g. (4, 1) is the box after an x-push, (goal x, initial box y)."""
-    return _sel(THETA_DIM, cols)
+class Face(StrEnum):
+    """A side of the box. A finger on it pushes the box away from itself, along `normal`."""
+
+    L = "L"
+    R = "R"
+    T = "T"
+    B = "B"
+
+    @property
+    def normal(self) -> np.ndarray:
+        return _NORMALS[self]
+
+    @property
+    def axis(self) -> int:
+        return X if self in (Face.L, Face.R) else Y
+
+    @property
+    def adjacent(self) -> tuple[Face, Face]:
+        """The faces whose free regions overlap this one's (at a corner of the box)."""
+        return (Face.T, Face.B) if self.axis == 0 else (Face.L, Face.R)
 
 
-BOX0, GOAL = (0, 1), (4, 5)
-AFTER_X, AFTER_Y = (4, 1), (0, 5)  # box after pushing along x first, along y first
+_NORMALS = {
+    Face.L: np.array([1.0, 0.0]),
+    Face.R: np.array([-1.0, 0.0]),
+    Face.T: np.array([0.0, -1.0]),
+    Face.B: np.array([0.0, 1.0]),
+}
+
+
+class VertexKind(StrEnum):
+    SOURCE = "source"
+    FREE = "free"
+    PUSH = "push"
+    TARGET = "target"
+
+
+# Point layouts: every vertex's point is a stack of planar positions (x, y); each class names them.
+def _at(i: int) -> slice:
+    return slice(2 * i, 2 * i + 2)
+
+
+class SourcePoint:
+    BOX, FINGER = _at(0), _at(1)
+    DIM = 4
+
+
+class TargetPoint:
+    BOX = _at(0)
+    DIM = 2
+
+
+class FreePoint:
+    """The box (still) and the finger's straight segment from START to END."""
+
+    BOX, START, END = _at(0), _at(1), _at(2)
+    DIM = 6
+
+
+class PushPoint:
+    """The box before and after the push."""
+
+    BEFORE, AFTER = _at(0), _at(1)
+    DIM = 4
+
+
+class Theta:
+    """The query, theta = [source point, target point], which pinned coordinates read."""
+
+    BOX0, FINGER0, GOAL = _at(0), _at(1), _at(2)
+    DIM = 6
+
+
+def _known_box(x_from: slice, y_from: slice) -> tuple[int, int]:
+    """Theta entries of a box position whose x is that of `x_from` and whose y is that of `y_from`."""
+    return x_from.start + X, y_from.start + Y
+
+
+BOX_START = _known_box(Theta.BOX0, Theta.BOX0)
+BOX_GOAL = _known_box(Theta.GOAL, Theta.GOAL)
+BOX_AFTER_X = _known_box(Theta.GOAL, Theta.BOX0)  # pushed along x first: x at the goal, y not yet
+BOX_AFTER_Y = _known_box(Theta.BOX0, Theta.GOAL)
 
 
 @dataclass
 class Vertex:
     name: str
-    kind: str  # "source", "free", "push", "target"
+    kind: VertexKind
     dim: int
     A: np.ndarray = field(repr=False)  # set: A x <= c
     c: np.ndarray = field(repr=False)
-    face: str | None = None
+    face: Face | None = None
     # Cost: ||D x||_2 + g . x + k (k counts once per visit).
     D: np.ndarray | None = field(default=None, repr=False)
     g: np.ndarray | None = field(default=None, repr=False)
     k: float = 0.0
-    # Pinned coordinates: x[pin_cols] == pin_S @ theta, theta = [box0 (2), finger0 (2), goal (2)].
+    # Pinned coordinates: x[pin_cols] == pin_S @ theta (layout `Theta`).
     # In the branch graph every box position is known from the query (one push per axis), so pinning
     # it is exact; without it the relaxation averages box positions that belong to different pushes.
     pin_cols: tuple[int, ...] = ()
@@ -136,70 +200,67 @@ class ModeGraph:
         return paths
 
 
-def _box_rows(dim: int, cols: list[int], limit: float) -> tuple[np.ndarray, np.ndarray]:
-    """Rows of |x_col| <= limit for the given columns."""
+def _box_rows(dim: int, blocks: list[slice], limit: float) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of |x_i| <= limit for every coordinate i of the given positions."""
     A = []
-    for col in cols:
-        for s in (1.0, -1.0):
-            row = np.zeros(dim)
-            row[col] = s
-            A.append(row)
+    for block in blocks:
+        for col in range(block.start, block.stop):
+            for s in (1.0, -1.0):
+                row = np.zeros(dim)
+                row[col] = s
+                A.append(row)
     return np.array(A), np.full(len(A), limit)
 
 
-def _free_vertex(scene: Scene, name: str, face: str, buffered_start: bool) -> Vertex:
-    n = NORMALS[face]
+def _free_vertex(scene: Scene, name: str, face: Face, buffered_start: bool) -> Vertex:
+    P = FreePoint
+    n = face.normal
     d, da = scene.contact_distance, scene.approach_distance
     rows, rhs = [], []
     # n . (p - b) <= -d (or -(d + t)), n . (q - b) <= -(d + t): finger on this face's side of the box.
-    for point_cols, dist in (((2, 3), da if buffered_start else d), ((4, 5), da)):
-        row = np.zeros(FREE_DIM)
-        row[list(point_cols)] = n
-        row[[0, 1]] = -n
+    for finger, dist in ((P.START, da if buffered_start else d), (P.END, da)):
+        row = np.zeros(P.DIM)
+        row[finger] = n
+        row[P.BOX] = -n
         rows.append(row)
         rhs.append(-dist)
-    Ab, cb = _box_rows(FREE_DIM, [0, 1], scene.box_reach)
-    Af, cf = _box_rows(FREE_DIM, [2, 3, 4, 5], scene.finger_limit)
+    Ab, cb = _box_rows(P.DIM, [P.BOX], scene.box_reach)
+    Af, cf = _box_rows(P.DIM, [P.START, P.END], scene.finger_limit)
     A = np.vstack([np.array(rows), Ab, Af])
     c = np.concatenate([rhs, cb, cf])
-    D = np.zeros((2, FREE_DIM))
-    D[:, 2:4] = -np.eye(2)
-    D[:, 4:6] = np.eye(2)
-    return Vertex(name, "free", FREE_DIM, A, c, face=face, D=D)
+    D = np.zeros((2, P.DIM))  # D x = end - start: the segment's length is the cost
+    D[:, P.START] = -np.eye(2)
+    D[:, P.END] = np.eye(2)
+    return Vertex(name, VertexKind.FREE, P.DIM, A, c, face=face, D=D)
 
 
-def _push_vertex(scene: Scene, name: str, face: str) -> Vertex:
-    n = NORMALS[face]
-    axis = AXIS[face]
-    other = 1 - axis
+def _push_vertex(scene: Scene, name: str, face: Face) -> Vertex:
+    P = PushPoint
+    n = face.normal
     rows, rhs = [], []
     # Motion along the normal only: the tangential coordinate is unchanged (two inequalities)...
+    tangential = 1 - face.axis
     for s in (1.0, -1.0):
-        row = np.zeros(PUSH_DIM)
-        row[other], row[2 + other] = -s, s
+        row = np.zeros(P.DIM)
+        row[P.BEFORE][tangential], row[P.AFTER][tangential] = -s, s
         rows.append(row)
         rhs.append(0.0)
     # ...and the box moves away from the finger: n . (c - a) >= 0.
-    row = np.zeros(PUSH_DIM)
-    row[0:2], row[2:4] = n, -n
+    row = np.zeros(P.DIM)
+    row[P.BEFORE], row[P.AFTER] = n, -n
     rows.append(row)
     rhs.append(0.0)
-    Ab, cb = _box_rows(PUSH_DIM, [0, 1, 2, 3], scene.box_reach)
+    Ab, cb = _box_rows(P.DIM, [P.BEFORE, P.AFTER], scene.box_reach)
     A = np.vstack([np.array(rows), Ab])
     c = np.concatenate([rhs, cb])
-    g = np.concatenate([-n, n])  # n . (c - a): the push length
-    return Vertex(name, "push", PUSH_DIM, A, c, face=face, g=g, k=2 * scene.transition_buffer)
+    g = np.zeros(P.DIM)  # g . x = n . (c - a): the push length
+    g[P.BEFORE], g[P.AFTER] = -n, n
+    return Vertex(name, VertexKind.PUSH, P.DIM, A, c, face=face, g=g, k=2 * scene.transition_buffer)
 
 
-def _point_vertex(name: str, kind: str, dim: int) -> Vertex:
+def _point_vertex(name: str, kind: VertexKind, dim: int) -> Vertex:
     # The point itself is a parameter, supplied by each solver.
     return Vertex(name, kind, dim, np.zeros((0, dim)), np.zeros(0))
-
-
-def _sel(dim: int, cols) -> np.ndarray:
-    M = np.zeros((len(cols), dim))
-    M[np.arange(len(cols)), list(cols)] = 1.0
-    return M
 
 
 class _Builder:
@@ -212,62 +273,70 @@ class _Builder:
         self.vertices.append(v)
         return len(self.vertices) - 1
 
-    def connect(self, u: int, v: int, pairs, needs=None) -> None:
-        """`pairs`: (cols of u, cols of v, offset): x_u[cols_u] - x_v[cols_v] == offset."""
-        du, dv = self.vertices[u].dim, self.vertices[v].dim
-        Mu = np.vstack([_sel(du, cu) for cu, _, _ in pairs])
-        Mv = np.vstack([-_sel(dv, cv) for _, cv, _ in pairs])
-        h = np.concatenate([np.broadcast_to(np.asarray(off, float), (len(cu),)) for cu, _, off in pairs])
+    def connect(self, u: int, v: int, pairs: list[tuple[slice, slice, object]], needs=None) -> None:
+        """`pairs`: (position in u, position in v, offset): x_u[pos_u] - x_v[pos_v] == offset."""
+        Iu, Iv = np.eye(self.vertices[u].dim), np.eye(self.vertices[v].dim)
+        Mu = np.vstack([Iu[pu] for pu, _, _ in pairs])
+        Mv = np.vstack([-Iv[pv] for _, pv, _ in pairs])
+        h = np.concatenate([np.broadcast_to(np.asarray(off, float), (2,)) for _, _, off in pairs])
         self.edges.append(Edge(u, v, Mu, Mv, h, needs))
 
-    def pin(self, v: int, cols: tuple[int, ...], theta_cols: tuple[int, ...]) -> None:
+    def pin(self, v: int, position: slice, known: tuple[int, int]) -> None:
+        """Pin a position of vertex v to the theta entries `known`."""
         vert = self.vertices[v]
-        vert.pin_cols = vert.pin_cols + tuple(cols)
-        S = _theta_rows(*theta_cols)
+        vert.pin_cols = vert.pin_cols + tuple(range(position.start, position.stop))
+        S = np.eye(Theta.DIM)[list(known)]
         vert.pin_S = S if vert.pin_S is None else np.vstack([vert.pin_S, S])
 
-    def free_layer(self, tag: str, buffered_start: bool, box=None) -> dict[str, int]:
-        layer = {f: self.add(_free_vertex(self.scene, f"{tag}:free:{f}", f, buffered_start)) for f in FACES}
+    def free_layer(self, tag: str, buffered_start: bool, box=None) -> dict[Face, int]:
+        layer = {f: self.add(_free_vertex(self.scene, f"{tag}:free:{f}", f, buffered_start)) for f in Face}
         if box is not None:
             for v in layer.values():
-                self.pin(v, (0, 1), box)
-        for f in FACES:
-            for g in ADJACENT[f]:
+                self.pin(v, FreePoint.BOX, box)
+        for f in Face:
+            for g in f.adjacent:
                 # Same box; the finger's segment end in f is its start in g.
-                self.connect(layer[f], layer[g], [((0, 1), (0, 1), 0.0), ((4, 5), (2, 3), 0.0)])
+                self.connect(
+                    layer[f], layer[g], [(FreePoint.BOX, FreePoint.BOX, 0.0), (FreePoint.END, FreePoint.START, 0.0)]
+                )
         return layer
 
-    def push(self, tag: str, face: str, before: int, box=None) -> int:
+    def push(self, tag: str, face: Face, before: int, box=None) -> int:
         """A push on `face` entered from free vertex `before`: its segment ends at the approach point.
-        `box`: theta columns of the box before and after the push, when the query determines them."""
+        `box`: theta entries of the box before and after the push, when the query determines them."""
         p = self.add(_push_vertex(self.scene, f"{tag}:push:{face}", face))
         if box is not None:
-            self.pin(p, (0, 1, 2, 3), box[0] + box[1])
-        approach = -self.scene.approach_distance * NORMALS[face]
-        axis = AXIS[face]
-        # free.b == push.a, free.q - push.a == approach offset
-        self.connect(before, p, [((0, 1), (0, 1), 0.0), ((4, 5), (0, 1), approach)],
-                     needs=(axis, int(NORMALS[face][axis])))
+            self.pin(p, PushPoint.BEFORE, box[0])
+            self.pin(p, PushPoint.AFTER, box[1])
+        approach = -self.scene.approach_distance * face.normal
+        # free.box == push.before, free.end - push.before == approach offset
+        self.connect(
+            before,
+            p,
+            [(FreePoint.BOX, PushPoint.BEFORE, 0.0), (FreePoint.END, PushPoint.BEFORE, approach)],
+            needs=(face.axis, int(face.normal[face.axis])),
+        )
         return p
 
     def leave(self, push: int, after: int) -> None:
         """Leave a push into free vertex `after`: the finger starts at the retreat point."""
-        face = self.vertices[push].face
-        retreat = -self.scene.approach_distance * NORMALS[face]
-        # push.c == free.b, push.c - free.p == -retreat offset
-        self.connect(push, after, [((2, 3), (0, 1), 0.0), ((2, 3), (2, 3), -retreat)])
+        retreat = -self.scene.approach_distance * self.vertices[push].face.normal
+        # push.after == free.box, push.after - free.start == -retreat offset
+        self.connect(push, after, [(PushPoint.AFTER, FreePoint.BOX, 0.0), (PushPoint.AFTER, FreePoint.START, -retreat)])
 
     def finish(self, push: int) -> None:
-        self.connect(push, self.target, [((2, 3), (0, 1), 0.0)])
+        self.connect(push, self.target, [(PushPoint.AFTER, TargetPoint.BOX, 0.0)])
 
     def start(self, free: int) -> None:
-        self.connect(self.source, free, [((0, 1), (0, 1), 0.0), ((2, 3), (2, 3), 0.0)])
+        self.connect(
+            self.source, free, [(SourcePoint.BOX, FreePoint.BOX, 0.0), (SourcePoint.FINGER, FreePoint.START, 0.0)]
+        )
 
     def begin(self) -> None:
-        self.source = self.add(_point_vertex("source", "source", SOURCE_DIM))
-        self.target = self.add(_point_vertex("target", "target", TARGET_DIM))
+        self.source = self.add(_point_vertex("source", VertexKind.SOURCE, SourcePoint.DIM))
+        self.target = self.add(_point_vertex("target", VertexKind.TARGET, TargetPoint.DIM))
 
-    def graph(self) -> "ModeGraph":
+    def graph(self) -> ModeGraph:
         return ModeGraph(self.scene, self.vertices, self.edges, self.source, self.target)
 
 
@@ -276,26 +345,28 @@ def build_graph(scene: Scene, structure: str = "branches", num_pushes: int = 2) 
     identical layers with any face per push (the general graph, for tests)."""
     b = _Builder(scene)
     b.begin()
-    first = b.free_layer("0", buffered_start=False, box=BOX0)
-    for f in FACES:
+    first = b.free_layer("0", buffered_start=False, box=BOX_START)
+    for f in Face:
         b.start(first[f])
     if structure == "branches":
-        for tag, faces0, faces1, mid in (("x", ("L", "R"), ("T", "B"), AFTER_X),
-                                         ("y", ("T", "B"), ("L", "R"), AFTER_Y)):
+        for tag, faces0, faces1, mid in (
+            ("x", (Face.L, Face.R), (Face.T, Face.B), BOX_AFTER_X),
+            ("y", (Face.T, Face.B), (Face.L, Face.R), BOX_AFTER_Y),
+        ):
             middle = b.free_layer(f"{tag}1", buffered_start=True, box=mid)
             for f in faces0:
-                p0 = b.push(f"{tag}0", f, first[f], box=(BOX0, mid))
+                p0 = b.push(f"{tag}0", f, first[f], box=(BOX_START, mid))
                 b.finish(p0)
                 b.leave(p0, middle[f])
             for f in faces1:
-                b.finish(b.push(f"{tag}1", f, middle[f], box=(mid, GOAL)))
+                b.finish(b.push(f"{tag}1", f, middle[f], box=(mid, BOX_GOAL)))
     elif structure == "layers":
         if num_pushes < 1:
             raise ValueError(f"num_pushes must be >= 1, got {num_pushes}")
         layer = first
         for k in range(num_pushes):
             nxt = b.free_layer(str(k + 1), buffered_start=True) if k + 1 < num_pushes else None
-            for f in FACES:
+            for f in Face:
                 p = b.push(str(k), f, layer[f])
                 b.finish(p)
                 if nxt is not None:

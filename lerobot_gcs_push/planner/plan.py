@@ -3,15 +3,26 @@
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from enum import StrEnum
 
 import numpy as np
 
-from lerobot_gcs_push.planner.graph import NORMALS, ModeGraph
+from lerobot_gcs_push.planner.graph import FreePoint, ModeGraph, PushPoint, VertexKind
 from lerobot_gcs_push.scene import Scene
 
-# Segment kinds, in the order a push visits them.
-FREE, APPROACH, PUSH, RETREAT = "free", "approach", "push", "retreat"
-DWELL = "dwell"  # holding a push's end point (a schedule-only kind)
+
+class SegmentKind(StrEnum):
+    """What the finger does along a segment of a plan, in the order a push visits them."""
+
+    FREE = "free"
+    APPROACH = "approach"
+    PUSH = "push"
+    RETREAT = "retreat"
+    DWELL = "dwell"  # holding a push's end point (in schedules only)
+
+
+# Short names, as the package's users import them (in definition order).
+FREE, APPROACH, PUSH, RETREAT, DWELL = SegmentKind
 
 
 @dataclass(frozen=True)
@@ -33,7 +44,7 @@ class Speeds:
     # -2.6 cm with no lead and a 2 s dwell, +0.4 cm with 0.85 and a 1 s dwell, +3 cm with 1.0.
     push_lead: float = 0.85
 
-    def of(self, kind: str) -> float:
+    def of(self, kind: SegmentKind) -> float:
         return getattr(self, kind)
 
     def __post_init__(self) -> None:
@@ -47,7 +58,7 @@ class Schedule:
     """Commands at t = 1/fps, 2/fps, ...; the segment kind active at each; where the box should rest."""
 
     commands: np.ndarray  # (N, 2)
-    kinds: list[str]  # (N,)
+    kinds: list[SegmentKind]  # (N,)
     box: np.ndarray  # (N, 2): planned box position (exact when the kind is not a push)
 
     def __len__(self) -> int:
@@ -63,7 +74,7 @@ class Plan:
     modes: list[str]
     finger_waypoints: np.ndarray  # (K+1, 2)
     box_waypoints: np.ndarray  # (K+1, 2): box position when the finger is at each waypoint
-    segment_kinds: list[str]  # (K,)
+    segment_kinds: list[SegmentKind]  # (K,)
     goal: np.ndarray
     candidates: int = 1  # paths whose restriction was solved
     extra: dict = field(default_factory=dict)
@@ -75,9 +86,6 @@ class Plan:
     @property
     def num_pushes(self) -> int:
         return sum(k == PUSH for k in self.segment_kinds)
-
-    def path_length(self) -> float:
-        return float(np.sum(np.linalg.norm(np.diff(self.finger_waypoints, axis=0), axis=1)))
 
     def _knots(self, speeds: Speeds):
         """Waypoints with a dwell after each push, their times and the kind of the segment ending there."""
@@ -131,7 +139,7 @@ class Plan:
             "num_pushes": self.num_pushes,
             "finger_waypoints": self.finger_waypoints.tolist(),
             "box_waypoints": self.box_waypoints.tolist(),
-            "segment_kinds": self.segment_kinds,
+            "segment_kinds": [str(k) for k in self.segment_kinds],
             "box_final": self.box_final.tolist(),
             "goal": self.goal.tolist(),
             "candidates": self.candidates,
@@ -139,12 +147,13 @@ class Plan:
         }
 
 
-def trace(scene: Scene, graph: ModeGraph, vertices, points: dict[int, np.ndarray],
-          box0: np.ndarray, finger0: np.ndarray):
+def trace(
+    scene: Scene, graph: ModeGraph, vertices, points: dict[int, np.ndarray], box0: np.ndarray, finger0: np.ndarray
+):
     """Finger and box waypoints and segment kinds along a solved path through the mode graph."""
     d, da = scene.contact_distance, scene.approach_distance
     finger, box = [np.array(finger0, float)], [np.array(box0, float)]
-    kinds: list[str] = []
+    kinds: list[SegmentKind] = []
     modes: list[str] = []
 
     def go(f, b, kind):
@@ -154,15 +163,15 @@ def trace(scene: Scene, graph: ModeGraph, vertices, points: dict[int, np.ndarray
 
     for v in vertices:
         vert = graph.vertices[v]
-        if vert.kind == "free":
+        if vert.kind == VertexKind.FREE:
+            end = points[v][FreePoint.END]
+            if np.linalg.norm(end - finger[-1]) > 1e-9:  # a region passed through at a single point
+                modes.append(f"{vert.kind}:{vert.face}")
+            go(end, box[-1], FREE)
+        elif vert.kind == VertexKind.PUSH:
             x = points[v]
-            if np.linalg.norm(x[4:6] - finger[-1]) > 1e-9:  # a region passed through at a single point
-                modes.append(f"free:{vert.face}")
-            go(x[4:6], box[-1], FREE)
-        elif vert.kind == "push":
-            x = points[v]
-            a, c, n = x[0:2], x[2:4], NORMALS[vert.face]
-            modes.append(f"push:{vert.face}")
+            a, c, n = x[PushPoint.BEFORE], x[PushPoint.AFTER], vert.face.normal
+            modes.append(f"{vert.kind}:{vert.face}")
             go(a - d * n, a, APPROACH)
             go(c - d * n, c, PUSH)
             go(c - da * n, c, RETREAT)

@@ -13,6 +13,7 @@ import cvxpy as cp
 import numpy as np
 
 from lerobot_gcs_push.planner.graph import ModeGraph
+from lerobot_gcs_push.planner.transcription import edge_constraint, vertex_constraints, vertex_costs
 
 
 @dataclass
@@ -37,24 +38,18 @@ class Restriction:
         self.src = cp.Parameter(g.vertices[g.source].dim)
         self.goal = cp.Parameter(g.vertices[g.target].dim)
         self.x: dict[int, cp.Expression] = {g.source: self.src, g.target: self.goal}
-        theta = cp.hstack([self.src, self.goal])
+        theta = cp.hstack([self.src, self.goal])  # graph.Theta
         cons, cost = [], []
         for v in self.vertices:
             if v in self.x:
                 continue
             vert = g.vertices[v]
-            x = cp.Variable(vert.dim)
-            self.x[v] = x
-            cons.append(vert.A @ x <= vert.c)
-            if vert.pin_cols:
-                cons.append(x[list(vert.pin_cols)] == vert.pin_S @ theta)
-            if vert.D is not None:
-                cost.append(cp.norm(vert.D @ x, 2))
-            if vert.g is not None:
-                cost.append(vert.g @ x + vert.k)
+            x = self.x[v] = cp.Variable(vert.dim)
+            cons += vertex_constraints(vert, x, theta)
+            cost += vertex_costs(vert, x)
         for i in edges:
             e = g.edges[i]
-            cons.append(e.Mu @ self.x[e.u] + e.Mv @ self.x[e.v] == e.h)
+            cons.append(edge_constraint(e, self.x[e.u], self.x[e.v]))
         self.problem = cp.Problem(cp.Minimize(sum(cost)), cons)
 
     def solve(self, src: np.ndarray, goal: np.ndarray) -> PathSolution:
@@ -68,10 +63,15 @@ class Restriction:
         elapsed = time.perf_counter() - t0
         if self.problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
             return PathSolution(self.edges, self.vertices, np.inf, {}, elapsed)
-        pts = {v: np.asarray(x.value, float) for v, x in self.x.items()
-               if isinstance(x, cp.Variable)}
-        return PathSolution(self.edges, self.vertices, float(self.problem.value), pts, elapsed,
-                            accurate=self.problem.status == cp.OPTIMAL)
+        pts = {v: np.asarray(x.value, float) for v, x in self.x.items() if isinstance(x, cp.Variable)}
+        return PathSolution(
+            self.edges,
+            self.vertices,
+            float(self.problem.value),
+            pts,
+            elapsed,
+            accurate=self.problem.status == cp.OPTIMAL,
+        )
 
 
 class RestrictionCache:

@@ -7,8 +7,9 @@ import numpy as np
 from lerobot_gcs_push.planner.graph import ModeGraph
 
 
-def candidate_paths(graph: ModeGraph, flows: np.ndarray, rng: np.random.Generator, trials: int,
-                    min_flow: float = 1e-4) -> list[tuple[int, ...]]:
+def candidate_paths(
+    graph: ModeGraph, flows: np.ndarray, rng: np.random.Generator, trials: int, min_flow: float = 1e-4
+) -> list[tuple[int, ...]]:
     """Distinct source-target paths (edge tuples): the greedy one first, then random walks that pick
     each out-edge with probability proportional to its flow, backtracking at dead ends."""
     outs = {v: graph.out_edges(v) for v in range(len(graph.vertices))}

@@ -1,13 +1,15 @@
 """A second, independent solver for the planner's shortest-path problem: Drake's `GraphOfConvexSets`.
 
-The mode graph (`graph.py`) is plain numpy data; here it is handed to Drake, which builds its own
-transcription (perspective relaxation, flow conservation, degree and two-cycle constraints) and its own
-rounding. Nothing from `gcs.py` is used, so agreement between the two is evidence that both pose the
-same problem.
+A test oracle (also timed by benchmarks/planner_bench.py), not part of the package. The mode graph
+(`lerobot_gcs_push/planner/graph.py`) is plain numpy data; here it is handed to Drake, which builds its
+own transcription (perspective relaxation, flow conservation, degree and two-cycle constraints) and its
+own rounding. Nothing from the planner's cvxpy programs is used, so agreement between the two is
+evidence that both pose the same problem.
 
-    dg = build_drake_gcs(graph, src, goal, allowed)        # one Drake GCS per query
+    q = planner.query(box, finger)                           # the problem GcsPlanner.plan solves
+    dg = build_drake_gcs(graph, q.src, q.goal, q.allowed)    # one Drake GCS per query
     res = solve_drake_gcs(dg, drake_options())               # one SolveShortestPath call (timed)
-    res = solve_with_drake(graph, src, goal, allowed)        # relaxation bound + rounding, in one go
+    res = solve_with_drake(graph, q.src, q.goal, q.allowed)  # relaxation bound + rounding, in one go
 
 Per query: every vertex set becomes an `HPolyhedron` (the pinned coordinates, evaluated at
 theta = [src, goal], become pairs of inequalities); the source and target are `Point`s; each vertex
@@ -16,8 +18,6 @@ cost is an `L2NormCost` on D x plus a `LinearCost` g.x + k; each edge carries th
 
 Drake has no mixed-integer solver without a Mosek/Gurobi licence, so `relaxation=False` computes the
 exact optimum by solving Drake's convex restriction (`SolveConvexRestriction`) of every simple path.
-
-This module imports pydrake; `lerobot_gcs_push.planner` itself never imports this module.
 """
 
 from __future__ import annotations
@@ -28,15 +28,10 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydrake.geometry.optimization import (GraphOfConvexSets, GraphOfConvexSetsOptions, HPolyhedron,
-                                           Point)
-from pydrake.solvers import (Binding, ClarabelSolver, Constraint, Cost, L2NormCost,
-                             LinearCost, LinearEqualityConstraint)
+from pydrake.geometry.optimization import GraphOfConvexSets, GraphOfConvexSetsOptions, HPolyhedron, Point
+from pydrake.solvers import Binding, ClarabelSolver, Constraint, Cost, L2NormCost, LinearCost, LinearEqualityConstraint
 
 from lerobot_gcs_push.planner.graph import ModeGraph
-
-__all__ = ["DrakeGcs", "DrakeResult", "build_drake_gcs", "drake_options", "solve_drake_gcs",
-           "solve_with_drake", "planner_query", "quiet_drake"]
 
 
 @dataclass
@@ -71,10 +66,10 @@ class DrakeGcs:
 
 
 def _vertex_set(vert, theta: np.ndarray):
+    """The vertex's polyhedron, its pinned coordinates as pairs of inequalities."""
     A, c = np.asarray(vert.A, float), np.asarray(vert.c, float)
     if vert.pin_cols:
-        P = np.zeros((len(vert.pin_cols), vert.dim))
-        P[np.arange(len(vert.pin_cols)), list(vert.pin_cols)] = 1.0
+        P = np.eye(vert.dim)[list(vert.pin_cols)]
         val = vert.pin_S @ theta
         A = np.vstack([A, P, -P])
         c = np.concatenate([c, val, -val])
@@ -85,7 +80,7 @@ def build_drake_gcs(graph: ModeGraph, src, goal, allowed=None) -> DrakeGcs:
     """One Drake GCS for the query (src = [box0, finger0], goal); edges with allowed == 0 are left out."""
     src = np.asarray(src, float)
     goal = np.asarray(goal, float)
-    theta = np.concatenate([src, goal])
+    theta = np.concatenate([src, goal])  # graph.Theta
     gcs = GraphOfConvexSets()
     dv = []
     for i, vert in enumerate(graph.vertices):
@@ -116,8 +111,9 @@ def build_drake_gcs(graph: ModeGraph, src, goal, allowed=None) -> DrakeGcs:
     return DrakeGcs(graph, gcs, dv, de, dv[graph.source], dv[graph.target])
 
 
-def drake_options(max_rounded_paths: int = 10, relaxation: bool = True, preprocessing: bool = False,
-                  seed: int = 0) -> GraphOfConvexSetsOptions:
+def drake_options(
+    max_rounded_paths: int = 10, relaxation: bool = True, preprocessing: bool = False, seed: int = 0
+) -> GraphOfConvexSetsOptions:
     opts = GraphOfConvexSetsOptions()
     opts.convex_relaxation = relaxation
     opts.max_rounded_paths = max_rounded_paths
@@ -159,14 +155,21 @@ def solve_drake_gcs(dg: DrakeGcs, options: GraphOfConvexSetsOptions) -> DrakeRes
         return DrakeResult(np.inf, np.nan, [], elapsed, status)
     rounded = bool(options.convex_relaxation) and (options.max_rounded_paths or 0) > 0
     cost = _cost(result)
-    idx, names = dg.path_result(dg.gcs.GetSolutionPath(dg.source, dg.target, result, tolerance=0.5
-                                                       if rounded else 1.0))
+    idx, names = dg.path_result(dg.gcs.GetSolutionPath(dg.source, dg.target, result, tolerance=0.5 if rounded else 1.0))
     lower = np.nan if rounded else cost
     return DrakeResult(cost, lower, names, elapsed, status, idx)
 
 
-def solve_with_drake(graph: ModeGraph, src, goal, allowed=None, max_rounded_paths: int = 10,
-                     relaxation: bool = True, preprocessing: bool = False, seed: int = 0) -> DrakeResult:
+def solve_with_drake(
+    graph: ModeGraph,
+    src,
+    goal,
+    allowed=None,
+    max_rounded_paths: int = 10,
+    relaxation: bool = True,
+    preprocessing: bool = False,
+    seed: int = 0,
+) -> DrakeResult:
     """Drake's answer to the query.
 
     relaxation=True: solve Drake's convex relaxation (its value is the lower bound), sample up to
@@ -187,8 +190,7 @@ def _solve_split(dg: DrakeGcs, relaxation, max_rounded_paths, preprocessing, see
         opts = drake_options(0, True, preprocessing, seed)
         relax = dg.gcs.SolveShortestPath(dg.source, dg.target, opts)
         if not relax.is_success():
-            return DrakeResult(np.inf, np.nan, [], time.perf_counter() - t0,
-                               str(relax.get_solution_result()))
+            return DrakeResult(np.inf, np.nan, [], time.perf_counter() - t0, str(relax.get_solution_result()))
         lower = _cost(relax)
         opts.max_rounded_paths = max_rounded_paths
         paths = dg.gcs.SamplePaths(dg.source, dg.target, relax, opts) if max_rounded_paths > 0 else []
@@ -209,18 +211,3 @@ def _solve_split(dg: DrakeGcs, relaxation, max_rounded_paths, preprocessing, see
     if not relaxation:
         lower = best_cost
     return DrakeResult(best_cost, lower, names, elapsed, best_status, idx, {"paths": len(paths)})
-
-
-def planner_query(planner, box, finger, goal=None):
-    """The (src, goal, allowed, extra_cost) that `GcsPlanner.plan` hands to its solvers, so that an
-    oracle solves exactly the same shortest-path problem. Mirrors `GcsPlanner.plan`; returns None when
-    the box is already at the goal (no push, nothing to solve)."""
-    scene = planner.scene
-    box, finger = np.asarray(box, float), np.asarray(finger, float)
-    goal = scene.goal_array if goal is None else np.asarray(goal, float)
-    delta = np.where(np.abs(goal - box) > planner.goal_tolerance, goal - box, 0.0)
-    if not np.any(delta):
-        return None
-    start, prefix = planner._escape(box, finger)
-    src = np.concatenate([box, start])
-    return src, box + delta, planner.graph.edge_allowed(delta, 0.0), (0.0 if prefix is None else prefix)

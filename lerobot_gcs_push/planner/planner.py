@@ -1,0 +1,181 @@
+"""`GcsPlanner`: one query in, one `Plan` out; the graph and its programs are built once."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from lerobot_gcs_push.planner.gcs import GcsProgram, SolverError
+from lerobot_gcs_push.planner.graph import ModeGraph, SourcePoint, build_graph
+from lerobot_gcs_push.planner.plan import FREE, Plan, trace
+from lerobot_gcs_push.planner.restriction import RestrictionCache
+from lerobot_gcs_push.planner.rounding import candidate_paths
+from lerobot_gcs_push.scene import Scene
+
+METHODS = ("relaxation", "micp")
+
+
+def _check_method(method: str) -> None:
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}: choose one of {METHODS}")
+
+
+@dataclass(frozen=True)
+class Query:
+    """The shortest-path problem that a plan request poses in the mode graph (and that the oracles in
+    tests pose to other solvers): from `src` to `goal` through the `allowed` edges."""
+
+    src: np.ndarray  # the source point: box, finger
+    goal: np.ndarray  # offsets under the goal tolerance dropped, so that no push of zero length is planned
+    allowed: np.ndarray  # per edge: 1.0 when its push agrees with the goal offset, else 0.0
+    escape: float | None  # length of the straight move out of a corner nook that reaches src, if needed
+
+    @property
+    def extra_cost(self) -> float:
+        return 0.0 if self.escape is None else self.escape
+
+
+class GcsPlanner:
+    def __init__(
+        self,
+        scene: Scene | None = None,
+        method: str = "relaxation",
+        structure: str = "branches",
+        num_pushes: int = 2,
+        rounding_trials: int = 8,
+        seed: int = 0,
+        goal_tolerance: float = 1e-6,
+        compile_now: bool = True,
+    ):
+        _check_method(method)
+        self.scene = scene or Scene()
+        self.method = method
+        self.graph: ModeGraph = build_graph(self.scene, structure, num_pushes)
+        self.rounding_trials = rounding_trials
+        self.goal_tolerance = goal_tolerance
+        self.seed = seed
+        self._programs: dict[str, GcsProgram] = {}
+        self.restrictions = RestrictionCache(self.graph)
+        self.compile_time_s: dict[str, float] = {}
+        if compile_now:
+            self.program(method)
+
+    def program(self, method: str) -> GcsProgram:
+        """The compiled program for `method` (compiled on first use; the time is kept)."""
+        _check_method(method)
+        if method not in self._programs:
+            t0 = time.perf_counter()
+            micp = method == "micp"
+            prog = GcsProgram(self.graph, integer=micp, two_cycles=micp)  # cuts pay off only in SCIP (gcs.py)
+            prog.compile()
+            self.compile_time_s[method] = time.perf_counter() - t0
+            self._programs[method] = prog
+        return self._programs[method]
+
+    def query(self, box, finger, goal=None) -> Query | None:
+        """The shortest-path problem that `plan` solves; None when the box is already at the goal."""
+        return self._query(*self._validate(box, finger, goal))
+
+    def plan(self, box, finger, goal=None, method: str | None = None) -> Plan:
+        method = method or self.method
+        box, finger, goal = self._validate(box, finger, goal)
+        t0 = time.perf_counter()
+        q = self._query(box, finger, goal)
+        if q is None:
+            return self._plan_without_push(method, box, finger, goal, t0)
+        prog = self.program(method)
+        prog.set_query(q.src, q.goal, q.allowed)
+        flows = prog.solve()
+        if method == "micp":
+            paths = candidate_paths(self.graph, flows.flows, None, 1, min_flow=0.5)
+        else:
+            # Seeded by the query, so a plan never depends on what this planner solved before.
+            rng = np.random.default_rng([self.seed, *np.frombuffer(np.r_[q.src, q.goal].tobytes(), np.uint32)])
+            paths = candidate_paths(self.graph, flows.flows, rng, self.rounding_trials)
+        best = None
+        for p in paths:
+            sol = self.restrictions.solve(p, q.src, q.goal)
+            if best is None or sol.rank() < best.rank():
+                best = sol
+        if best is None or not np.isfinite(best.cost):
+            raise SolverError(
+                f"rounding found no feasible path among {len(paths)} candidates "
+                f"(relaxation status {flows.status!r}, value {flows.value:.4f})"
+            )
+        modes, fw, bw, kinds = trace(self.scene, self.graph, best.vertices, best.points, box, q.src[SourcePoint.FINGER])
+        if q.escape is not None:
+            fw = np.vstack([finger, fw])
+            bw = np.vstack([box, bw])
+            kinds = [FREE, *kinds]
+            modes = ["escape", *modes]
+        # MICP: SCIP proves optimality (within its gap), so its bound is its value.
+        lower = (best.cost if method == "micp" else min(flows.value, best.cost)) + q.extra_cost
+        return Plan(
+            method=method,
+            cost=best.cost + q.extra_cost,
+            lower_bound=lower,
+            solve_time_s=time.perf_counter() - t0,
+            modes=modes,
+            finger_waypoints=fw,
+            box_waypoints=bw,
+            segment_kinds=kinds,
+            goal=goal,
+            candidates=len(paths),
+            extra={"relaxation_time_s": flows.solve_time_s},
+        )
+
+    def _validate(self, box, finger, goal):
+        scene = self.scene
+        box, finger = scene.validate_state(box, finger, what="plan", box_limit=scene.box_reach)
+        goal = scene.goal_array if goal is None else np.asarray(goal, float)
+        if goal.shape != (2,) or not np.all(np.isfinite(goal)):
+            raise ValueError(f"goal must be a finite pair [x, y], got {goal!r}")
+        if np.max(np.abs(goal)) > scene.box_limit:
+            raise ValueError(f"goal {goal.tolist()} lies outside the box workspace |x|,|y| <= {scene.box_limit}")
+        return box, finger, goal
+
+    def _query(self, box, finger, goal) -> Query | None:
+        delta = np.where(np.abs(goal - box) > self.goal_tolerance, goal - box, 0.0)
+        if not np.any(delta):
+            return None
+        start, escape = self._escape(box, finger)
+        return Query(np.concatenate([box, start]), box + delta, self.graph.edge_allowed(delta, 0.0), escape)
+
+    def _plan_without_push(self, method, box, finger, goal, t0) -> Plan:
+        return Plan(
+            method=method,
+            cost=0.0,
+            lower_bound=0.0,
+            solve_time_s=time.perf_counter() - t0,
+            modes=[],
+            finger_waypoints=finger[None].copy(),
+            box_waypoints=box[None].copy(),
+            segment_kinds=[],
+            goal=goal,
+            candidates=0,
+        )
+
+    def _escape(self, box, finger):
+        """Move a finger that sits diagonally off a box corner, inside the square |r|_inf < d where no
+        free region reaches, straight away from that corner until it is in a free region."""
+        d = self.scene.contact_distance
+        r = finger - box
+        if np.max(np.abs(r)) >= d:
+            return finger, None
+        corner = np.sign(r) * self.scene.box_half
+        u = (r - corner) / np.linalg.norm(r - corner)
+        # Smallest t with max(|corner + t u|) = d, along the outward diagonal-ish direction.
+        t = min((d - np.abs(corner[i])) / abs(u[i]) for i in range(2) if abs(u[i]) > 1e-12)
+        t_from_r = t - np.linalg.norm(r - corner)
+        start = finger + u * max(t_from_r, 0.0)
+        return start, float(np.linalg.norm(start - finger))
+
+    def warm_up(self) -> float:
+        """Compile the restriction of every simple path now, so that no query pays for it later."""
+        t0 = time.perf_counter()
+        src = np.concatenate([np.zeros(2), [0.0, -2.0]])
+        for p in self.graph.simple_paths():
+            self.restrictions.solve(p, src, np.array([1.0, 1.0]))
+        return time.perf_counter() - t0

@@ -1,0 +1,56 @@
+"""One rollout for every consumer: a policy in `GcsPushBox-v0` from an initial condition.
+
+Demonstrations, evaluation and active-data collection all run this loop and differ only in what they
+keep (`on_step`). A policy is anything with `reset(obs, info, seed)` and `act(obs, info) -> action`: the
+GCS experts read the true state from `info`, a learned policy only the observation. A policy may add
+its own fields to the summary with `episode_summary()`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Protocol
+
+import numpy as np
+
+
+class Policy(Protocol):
+    def reset(self, obs: dict, info: dict, seed: int | None) -> None: ...
+
+    def act(self, obs: dict, info: dict) -> np.ndarray: ...
+
+
+def rollout(
+    env,
+    policy: Policy,
+    box=None,
+    finger=None,
+    seed: int | None = None,
+    on_step: Callable[[dict, np.ndarray, dict], None] | None = None,
+) -> dict:
+    """Run one episode of `policy` in `env` (a GcsPushBoxEnv, possibly wrapped) and summarise it.
+
+    Without `box`/`finger` the env samples the initial condition from `seed`. `on_step(obs, action,
+    info)` sees each action with the observation it was chosen from."""
+    options = None if box is None else {"box": list(box), "finger": list(finger)}
+    obs, info = env.reset(seed=seed, options=options)
+    policy.reset(obs, info, seed)
+    t0 = time.perf_counter()
+    terminated = truncated = False
+    while not (terminated or truncated):
+        action = policy.act(obs, info)
+        if on_step is not None:
+            on_step(obs, action, info)
+        obs, _, terminated, truncated, info = env.step(action)
+    summary = {
+        "success": bool(info["is_success"]),
+        "final_distance": float(info["box_goal_distance"]),
+        "sim_time_s": float(info["sim_time_s"]),
+        "run_time_s": time.perf_counter() - t0,  # wall clock of the loop: inference or replanning included
+        "box_final": np.asarray(info["box"]).tolist(),
+        "finger_final": np.asarray(info["finger"]).tolist(),
+        "disturbances": info.get("disturbances", []),
+    }
+    extra = getattr(policy, "episode_summary", None)
+    return summary | (extra() if extra is not None else {})

@@ -1,0 +1,13 @@
+"""The Drake simulation of the pushing scene, one concern per module:
+
+- `plant`: the multibody plant (box and finger on prismatic joints, ground and goal visuals);
+- `camera`: the top-down camera (intrinsics, render engine and lights, world <-> pixel mapping);
+- `collision`: finger-box distance queries on a render-free copy of the plant;
+- `push_sim`: `PushSim`, the controlled, disturbed, rendered diagram that composes them.
+"""
+
+from lerobot_gcs_push.sim.camera import TopDownCamera
+from lerobot_gcs_push.sim.collision import CollisionQuery
+from lerobot_gcs_push.sim.push_sim import PushSim
+
+__all__ = ["CollisionQuery", "PushSim", "TopDownCamera"]
