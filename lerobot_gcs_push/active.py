@@ -31,9 +31,12 @@ from lerobot_gcs_push.scene import Scene
 
 @dataclass
 class CollectConfig:
-    rollouts: list[str] = field(default_factory=list)  # `gcs-push evaluate` output folders
+    # `gcs-push evaluate` output folders of the policy to correct, e.g. '[outputs/active/r1/rollouts]'.
+    rollouts: list[str] = field(default_factory=list)
+    # The labelled states' LeRobot dataset id.
     repo_id: str = "local/gcs_push_active"
-    root: str | None = None  # default: $HF_LEROBOT_HOME/<repo_id>
+    # Dataset folder; default: $HF_LEROBOT_HOME/<repo_id>.
+    root: str | None = None
     # Chunk starts above these regrets are branched from: any mistake of a successful run; in a failed
     # run also the slower drift (a wrong-face push costs a few decimetres a chunk). The GCS experts'
     # own chunks stay under 0.5 m, so neither picks noise.
@@ -41,11 +44,19 @@ class CollectConfig:
     failed_regret_m: float = 0.25
     keep_fraction: float = 0.05  # of the other chunk starts, for coverage of the policy's distribution
     max_per_run: int = 12  # spread over the run's time, so the decision and the drift after it both count
-    clearance: float = 0.02  # m between finger and box at a branch state (contact compliance, Drake's query)
+    # Metres between finger and box at a branch state (contact compliance, Drake's query).
+    clearance: float = 0.02
+    # Seeds the choice of the other chunk starts and the expert's episodes.
     seed: int = 0
+    # Worker processes (or Ray actors) for the expert's rollouts.
     workers: int = 2
+    # Replace an existing dataset.
     overwrite: bool = False
+    # Continue an interrupted collection.
     resume: bool = False
+    # process or ray, and the Ray cluster's address: as for `gcs-push generate`.
+    backend: str = "process"
+    ray_address: str | None = None
 
     def __post_init__(self) -> None:
         if not self.rollouts:
@@ -118,6 +129,8 @@ def collect(cfg: CollectConfig) -> tuple[GenerateReport, list[dict]]:
         expert="closed-loop",
         overwrite=cfg.overwrite,
         resume=cfg.resume,
+        backend=cfg.backend,
+        ray_address=cfg.ray_address,
     )
     root = dataset_root(gen)
     # The list sits beside the dataset (kept for provenance), written whole before generation reads it.

@@ -44,30 +44,51 @@ FEATURE_KEYS = ("observation.image", "observation.state", "observation.environme
 
 @dataclass
 class GenerateConfig:
+    # Successful demonstrations to write (failed rollouts are left out).
     episodes: int = 100
+    # LeRobot dataset id, "owner/name".
     repo_id: str = "local/gcs_push_box"
-    root: str | None = None  # default: $HF_LEROBOT_HOME/<repo_id>, where LeRobot looks first
+    # Dataset folder; default: $HF_LEROBOT_HOME/<repo_id>, where LeRobot looks first.
+    root: str | None = None
+    # The i-th initial condition and episode depend only on (seed, i).
     seed: int = 0
+    # Worker processes (or Ray actors); the dataset does not depend on it.
     workers: int = 2
+    # open-loop (plan once, the paper's) or closed-loop (replans after disturbances).
     expert: str = "open-loop"
+    # relaxation (convex relaxation + rounding) or micp (exact, SCIP).
     method: str = "relaxation"
+    # Initial conditions: sobol (space-filling), uniform (the paper's) or hard (see scene.py).
     sampler: str = "sobol"
     # A JSON list of {"box", "finger"} to use instead of the sampler (e.g. the policy states that
     # `gcs-push collect` picked); then every entry is tried once, and failures are left out.
     initial_conditions: str | None = None
-    frames: int | None = None  # stop once this many frames are written (an equal-cost control)
+    # Stop once this many frames are written (an equal-cost control); episodes is then an upper bound.
+    frames: int | None = None
+    # Record under the paper's random pushes on the box (use with the closed-loop expert).
     disturbances: bool = False
+    # Env steps (frames) per simulated second.
     fps: int = Scene.fps
+    # Observation image side, pixels.
     image_size: int = 96
+    # Simulated seconds before a rollout counts as failed.
     max_sim_time_s: float = Scene.timeout_s
+    # Replace an existing dataset (and an interrupted run's work).
     overwrite: bool = False
+    # Continue an interrupted run, keeping its finished episodes and shards.
     resume: bool = False
+    # Upload with LeRobot's push_to_hub (needs the network and a token).
     push_to_hub: bool = False
+    # Show a progress bar.
     progress: bool = True
-    max_attempts_factor: float = 2.0  # give up after episodes * factor initial conditions
-    backend: str = "process"  # or "ray": where the jobs run (see lerobot_gcs_push.workers)
-    ray_address: str | None = None  # "auto" or "HOST:PORT" joins a running Ray cluster; none starts one here
-    shard_size: int = 10  # initial conditions per job, at most; each job writes one shard
+    # Give up after episodes * factor initial conditions.
+    max_attempts_factor: float = 2.0
+    # process (worker processes here) or ray (Ray actors; see lerobot_gcs_push.workers).
+    backend: str = "process"
+    # With backend ray: "auto" or "HOST:PORT" joins a running cluster; none starts Ray here.
+    ray_address: str | None = None
+    # Initial conditions per job, at most; each job writes one shard, merged at the end.
+    shard_size: int = 10
 
     def __post_init__(self) -> None:
         if self.episodes < 1:
@@ -75,7 +96,7 @@ class GenerateConfig:
         if self.workers < 1:
             raise ValueError(f"workers must be >= 1, got {self.workers}")
         if self.overwrite and self.resume:
-            raise ValueError("choose one of --overwrite and --resume, not both")
+            raise ValueError("choose one of overwrite and resume, not both")
         if "/" not in self.repo_id:
             raise ValueError(f"repo_id must look like 'owner/name', got {self.repo_id!r}")
         from lerobot_gcs_push.expert import EXPERTS
@@ -107,8 +128,11 @@ def dataset_root(cfg: GenerateConfig) -> Path:
 
 def features(image_size: int) -> dict:
     return {
-        "observation.image": {"dtype": "image", "shape": (image_size, image_size, 3),
-                              "names": ["height", "width", "channel"]},
+        "observation.image": {
+            "dtype": "image",
+            "shape": (image_size, image_size, 3),
+            "names": ["height", "width", "channel"],
+        },
         "observation.state": {"dtype": "float32", "shape": (2,), "names": ["finger_x", "finger_y"]},
         "observation.environment_state": {"dtype": "float32", "shape": (2,), "names": ["box_x", "box_y"]},
         "action": {"dtype": "float32", "shape": (2,), "names": ["finger_target_x", "finger_target_y"]},
@@ -129,11 +153,21 @@ def _init_worker(cfg_dict: dict, work_path: str, shards_path: str) -> None:
     from lerobot_gcs_push.planner import GcsPlanner
 
     cfg = GenerateConfig(**cfg_dict)
-    env = gym.make("GcsPushBox-v0", fps=cfg.fps, image_size=cfg.image_size, disturbances=cfg.disturbances,
-                   max_sim_time_s=cfg.max_sim_time_s).unwrapped
+    env = gym.make(
+        "GcsPushBox-v0",
+        fps=cfg.fps,
+        image_size=cfg.image_size,
+        disturbances=cfg.disturbances,
+        max_sim_time_s=cfg.max_sim_time_s,
+    ).unwrapped
     planner = GcsPlanner(env.scene, method=cfg.method)
-    _WORKER.update(cfg=cfg, env=env, work=WorkDir(Path(work_path)), shards=Path(shards_path),
-                   expert=GcsExpert(planner, cfg.fps, ExpertConfig(mode=cfg.expert, method=cfg.method)))
+    _WORKER.update(
+        cfg=cfg,
+        env=env,
+        work=WorkDir(Path(work_path)),
+        shards=Path(shards_path),
+        expert=GcsExpert(planner, cfg.fps, ExpertConfig(mode=cfg.expert, method=cfg.method)),
+    )
 
 
 def shard_path(shards: Path, start: int) -> Path:
@@ -186,7 +220,7 @@ def _crash_hook(index: int) -> None:
 
 
 def _run_episode(job: tuple[int, dict]) -> dict:
-    from lerobot_gcs_push.expert import rollout
+    from lerobot_gcs_push.rollout import rollout
 
     index, ic = job
     env, expert, cfg = _WORKER["env"], _WORKER["expert"], _WORKER["cfg"]
@@ -202,12 +236,20 @@ def _run_episode(job: tuple[int, dict]) -> dict:
     result = rollout(env, expert, ic["box"], ic["finger"], seed=episode_seed(cfg.seed, index), on_step=record)
     plan = result["plan"]
     meta = {
-        "index": index, "box_initial": ic["box"], "finger_initial": ic["finger"],
-        "success": result["success"], "final_distance": result["final_distance"],
-        "sim_time_s": result["sim_time_s"], "plan_time_s": result["plan_time_s"],
-        "plan_cost": plan.cost, "plan_lower_bound": plan.lower_bound, "modes": plan.modes,
-        "replans": result["replans"], "num_frames": len(frames["action"]),
-        "wall_time_s": time.perf_counter() - t0, "disturbances": result["disturbances"],
+        "index": index,
+        "box_initial": ic["box"],
+        "finger_initial": ic["finger"],
+        "success": result["success"],
+        "final_distance": result["final_distance"],
+        "sim_time_s": result["sim_time_s"],
+        "plan_time_s": result["plan_time_s"],
+        "plan_cost": plan.cost,
+        "plan_lower_bound": plan.lower_bound,
+        "modes": plan.modes,
+        "replans": result["replans"],
+        "num_frames": len(frames["action"]),
+        "wall_time_s": time.perf_counter() - t0,
+        "disturbances": result["disturbances"],
     }
     arrays = {k: np.stack(v) for k, v in frames.items()} if result["success"] else {}
     # The worker compresses and saves its own episode; only the metadata travels back.
@@ -229,7 +271,9 @@ class WorkDir:
         if self.path.exists():
             if not resume:
                 raise FileExistsError(
-                    f"an interrupted run left {self.path}: pass --resume to continue it or --overwrite to start again")
+                    f"an interrupted run left {self.path}: pass --resume=true to continue it "
+                    "or --overwrite=true to start again"
+                )
             old = json.loads(self.settings_file().read_text()) if self.settings_file().exists() else None
             if old is not None and old != settings:
                 diff = {k: (old.get(k), v) for k, v in settings.items() if old.get(k) != v}
@@ -248,7 +292,9 @@ class WorkDir:
         meta = result["meta"]
         path = self.episode_file(meta["index"])
         tmp = path.with_name("." + path.name)  # not taken for a finished episode until renamed
-        np.savez_compressed(tmp, meta=json.dumps(meta), **{k.replace(".", "__"): v for k, v in result["arrays"].items()})
+        np.savez_compressed(
+            tmp, meta=json.dumps(meta), **{k.replace(".", "__"): v for k, v in result["arrays"].items()}
+        )
         os.replace(tmp, path)
 
     def load_arrays(self, index: int) -> dict[str, np.ndarray]:
@@ -290,12 +336,28 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
         for path in (root, work.path, shards):
             shutil.rmtree(path, ignore_errors=True)
     if root.exists():
-        raise FileExistsError(f"a dataset already exists at {root}: pass --overwrite to replace it "
-                              f"(or choose another --repo-id / --root)")
+        raise FileExistsError(
+            f"a dataset already exists at {root}: pass --overwrite=true to replace it "
+            "(or choose another --repo_id / --root)"
+        )
     # Where and how the jobs run may change on --resume; what they compute may not.
-    settings = {k: v for k, v in asdict(cfg).items() if k not in (
-        "workers", "overwrite", "resume", "progress", "push_to_hub", "episodes", "root", "backend", "ray_address",
-        "shard_size")}
+    settings = {
+        k: v
+        for k, v in asdict(cfg).items()
+        if k
+        not in (
+            "workers",
+            "overwrite",
+            "resume",
+            "progress",
+            "push_to_hub",
+            "episodes",
+            "root",
+            "backend",
+            "ray_address",
+            "shard_size",
+        )
+    }
     if not work.path.exists():  # shards are only trusted with the settings they were made with
         shutil.rmtree(shards, ignore_errors=True)
     work.open(settings, cfg.resume)
@@ -308,8 +370,9 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
         ics = [{"box": ic["box"], "finger": ic["finger"]} for ic in load_initial_conditions(cfg.initial_conditions)]
     else:
         max_attempts = int(np.ceil(cfg.episodes * cfg.max_attempts_factor)) + 10
-        ics = [ic.to_json() for ic in sample_initial_conditions(scene, max_attempts, seed=cfg.seed,
-                                                                sampler=cfg.sampler)]
+        ics = [
+            ic.to_json() for ic in sample_initial_conditions(scene, max_attempts, seed=cfg.seed, sampler=cfg.sampler)
+        ]
     finished = {s["start"]: s for s in map(_read_shard, shards.glob("shard_*")) if s is not None}
     bar = _progress(cfg)
     failures = 0
@@ -322,9 +385,14 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
         bar.set_postfix(failures=failures)
 
     try:
-        with open_pool(cfg.backend, cfg.workers, _init_worker, (asdict(cfg), str(work.path), str(shards)),
-                       address=cfg.ray_address,
-                       hint=f"the finished shards are kept in {shards}: run again with --resume") as pool:
+        with open_pool(
+            cfg.backend,
+            cfg.workers,
+            _init_worker,
+            (asdict(cfg), str(work.path), str(shards)),
+            address=cfg.ray_address,
+            hint=f"the finished shards are kept in {shards}: run again with --resume=true",
+        ) as pool:
             kept = _run_shards(cfg, pool, ics, finished, shards, progress)
     finally:
         bar.close()
@@ -334,8 +402,10 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
     enough = len(metas) == cfg.episodes or (cfg.frames is not None and frames >= cfg.frames)
     # A given list is tried once and its failures are reported, not an error.
     if not enough and not (cfg.initial_conditions and metas):
-        raise RuntimeError(f"only {len(metas)} of {cfg.episodes} episodes succeeded after {attempts} initial "
-                           f"conditions; their records are in {shards}")
+        raise RuntimeError(
+            f"only {len(metas)} of {cfg.episodes} episodes succeeded after {attempts} initial "
+            f"conditions; their records are in {shards}"
+        )
     merged = [shard_path(shards, s["start"]) for s in kept if any(m["success"] for m in s["episodes"])]
     t_merge = time.perf_counter()
     _merge(cfg, root, merged, metas)
@@ -343,15 +413,26 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
     shutil.rmtree(shards, ignore_errors=True)
     shutil.rmtree(work.path, ignore_errors=True)
     wall = time.perf_counter() - t0
-    report = GenerateReport(str(root), cfg.repo_id, len(metas), frames, attempts, attempts - len(metas), wall,
-                            60.0 * len(metas) / wall if wall > 0 else float("inf"), len(merged), merge_time)
+    report = GenerateReport(
+        str(root),
+        cfg.repo_id,
+        len(metas),
+        frames,
+        attempts,
+        attempts - len(metas),
+        wall,
+        60.0 * len(metas) / wall if wall > 0 else float("inf"),
+        len(merged),
+        merge_time,
+    )
     if cfg.push_to_hub:
         push_to_hub(cfg.repo_id, root)
     return report
 
 
-def _run_shards(cfg: GenerateConfig, pool, ics: list[dict], finished: dict[int, dict], shards: Path,
-                on_shard) -> list[dict]:
+def _run_shards(
+    cfg: GenerateConfig, pool, ics: list[dict], finished: dict[int, dict], shards: Path, on_shard
+) -> list[dict]:
     """The shards that make the dataset, in index order: an interrupted run's, then new ones from the pool.
 
     The dataset is the first `episodes` successful rollouts in index order (fewer if `frames` are reached
@@ -391,8 +472,11 @@ def _run_shards(cfg: GenerateConfig, pool, ics: list[dict], finished: dict[int, 
                 continue
             if old is not None:  # from a run that asked for more episodes: it may hold more than are missing
                 shutil.rmtree(shard_path(shards, frontier))
-            stop = min(frontier + cfg.shard_size, frontier + missing(),
-                       min((start for start in finished if start > frontier), default=len(ics)))
+            stop = min(
+                frontier + cfg.shard_size,
+                frontier + missing(),
+                min((start for start in finished if start > frontier), default=len(ics)),
+            )
             pool.submit(_run_shard, (frontier, stop, ics[frontier:stop]))
             running[frontier] = stop
             frontier = stop
@@ -423,8 +507,9 @@ def _merge(cfg: GenerateConfig, root: Path, shard_roots: list[Path], metas: list
     shutil.rmtree(staging, ignore_errors=True)
     with _batched_image_embedding():
         aggregate_datasets([cfg.repo_id] * len(shard_roots), cfg.repo_id, roots=shard_roots, aggr_root=staging)
-    (staging / EPISODES_META).write_text("".join(json.dumps({"episode_index": i, **meta}) + "\n"
-                                                 for i, meta in enumerate(metas)))
+    (staging / EPISODES_META).write_text(
+        "".join(json.dumps({"episode_index": i, **meta}) + "\n" for i, meta in enumerate(metas))
+    )
     root.parent.mkdir(parents=True, exist_ok=True)
     os.replace(staging, root)
 
@@ -432,13 +517,13 @@ def _merge(cfg: GenerateConfig, root: Path, shard_roots: list[Path], metas: list
 def _progress(cfg: GenerateConfig):
     from tqdm.auto import tqdm
 
-    return tqdm(total=cfg.episodes, desc="demonstrations", unit="ep", disable=not cfg.progress,
-                dynamic_ncols=True)
+    return tqdm(total=cfg.episodes, desc="demonstrations", unit="ep", disable=not cfg.progress, dynamic_ncols=True)
 
 
 @contextlib.contextmanager
 def _batched_image_embedding():
-    """Within the block, LeRobot's writer and its aggregation embed PNG bytes in one batched call per table.
+    """Within the block, LeRobot's writer and its aggregation embed PNG bytes in one batched call per table,
+    quietly.
 
     lerobot 0.6.1 embeds them row by row (`datasets.map(embed_table_storage, batched=False)`), which
     rebuilds the Arrow schema for every frame: 3.7 of the writer's 6 ms per 96x96 frame, paid again for
@@ -460,6 +545,11 @@ def _batched_image_embedding():
         fmt = dataset.format
         return dataset.with_format("arrow").map(embed_table_storage, batched=True).with_format(**fmt)
 
+    from datasets.utils import logging as datasets_logging
+
+    # `datasets` draws a "Map" bar for every episode saved: one line per episode under our own bar.
+    bars_were_on = datasets_logging.is_progress_bar_enabled()
+    datasets_logging.disable_progress_bar()
     for m in modules:
         m.embed_images = embed_images
     try:
@@ -467,6 +557,8 @@ def _batched_image_embedding():
     finally:
         for m, original in zip(modules, originals, strict=True):
             m.embed_images = original
+        if bars_were_on:
+            datasets_logging.enable_progress_bar()
 
 
 class _Writer:
@@ -476,9 +568,15 @@ class _Writer:
         from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
         self.root = root
-        self.ds = LeRobotDataset.create(repo_id=cfg.repo_id, fps=cfg.fps, features=features(cfg.image_size),
-                                        root=root, robot_type="gcs_push_finger", use_videos=False,
-                                        video_backend="pyav")
+        self.ds = LeRobotDataset.create(
+            repo_id=cfg.repo_id,
+            fps=cfg.fps,
+            features=features(cfg.image_size),
+            root=root,
+            robot_type="gcs_push_finger",
+            use_videos=False,
+            video_backend="pyav",
+        )
         self.lines: list[str] = []
 
     def add(self, meta: dict, arrays: dict[str, np.ndarray]) -> None:
@@ -501,8 +599,10 @@ def read_episode_metadata(root) -> list[dict]:
 def push_to_hub(repo_id: str, root: Path) -> None:
     """LeRobot's own upload; fails clearly without a network or a token."""
     if os.environ.get("HF_HUB_OFFLINE", "0") not in ("0", "", "false", "False"):
-        raise RuntimeError("--push-to-hub needs the network, but HF_HUB_OFFLINE is set; unset it and log in "
-                           "with `huggingface-cli login` first")
+        raise RuntimeError(
+            "--push-to-hub needs the network, but HF_HUB_OFFLINE is set; unset it and log in "
+            "with `huggingface-cli login` first"
+        )
     from huggingface_hub import get_token
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 

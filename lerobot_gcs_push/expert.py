@@ -14,7 +14,6 @@ import numpy as np
 
 from lerobot_gcs_push.planner import GcsPlanner, Plan, SolverError, Speeds
 from lerobot_gcs_push.planner.plan import DWELL, PUSH, Schedule
-from lerobot_gcs_push.rollout import rollout  # noqa: F401  (TEMP re-export)
 
 EXPERTS = ("open-loop", "closed-loop")
 

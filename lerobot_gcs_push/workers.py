@@ -32,7 +32,7 @@ def check_backend(backend: str, address: str | None) -> None:
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}: choose one of {BACKENDS}")
     if address is not None and backend != "ray":
-        raise ValueError("--ray-address needs --backend ray")
+        raise ValueError("ray_address needs backend ray")
     if backend == "ray" and importlib.util.find_spec("ray") is None:
         raise ValueError("--backend ray needs Ray: pip install 'lerobot_env_gcs_push[ray]'")
 

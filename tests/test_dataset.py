@@ -20,7 +20,9 @@ N = 3
 
 
 def _cfg(tmp: Path, name: str, **kw) -> GenerateConfig:
-    return GenerateConfig(**{"episodes": N, "repo_id": f"local/{name}", "root": str(tmp / name), "workers": 1, "progress": False, **kw})
+    return GenerateConfig(
+        **{"episodes": N, "repo_id": f"local/{name}", "root": str(tmp / name), "workers": 1, "progress": False, **kw}
+    )
 
 
 @pytest.fixture(scope="module")
@@ -131,8 +133,16 @@ def test_worker_count_and_interruption_do_not_change_the_dataset(tmp_path, refer
     assert _digest(Path(two.root)) == _digest(Path(report.root))
 
     root = tmp_path / "killed"
-    cmd = [sys.executable, "-m", "lerobot_gcs_push.cli", "generate", "--episodes", str(N), "--repo-id",
-           "local/killed", "--root", str(root), "--workers", "1"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "lerobot_gcs_push.cli",
+        "generate",
+        f"--episodes={N}",
+        "--repo_id=local/killed",
+        f"--root={root}",
+        "--workers=1",
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     work = root.with_name(root.name + ".work")
     deadline = time.time() + 300
@@ -143,7 +153,7 @@ def test_worker_count_and_interruption_do_not_change_the_dataset(tmp_path, refer
     assert not root.exists(), "a killed run must leave no dataset in the cache"
     res = subprocess.run(cmd, capture_output=True, text=True)
     assert res.returncode != 0 and "--resume" in res.stderr
-    subprocess.run(cmd + ["--resume"], check=True, capture_output=True)
+    subprocess.run(cmd + ["--resume=true"], check=True, capture_output=True)
     assert _digest(root) == _digest(Path(report.root))
     assert not work.exists()
 

@@ -8,21 +8,35 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from lerobot_gcs_push.evaluation import TIMING_FIELDS, EvaluateConfig, evaluate, read_runs
 
-REQUIRED = ("policy", "disturbances", "initial_condition_index", "box_initial", "finger_initial", "run", "seed",
-            "success", "final_distance", "sim_time_s", "run_time_s", "plan_time_s")
+REQUIRED = (
+    "policy",
+    "disturbances",
+    "initial_condition_index",
+    "box_initial",
+    "finger_initial",
+    "run",
+    "seed",
+    "success",
+    "final_distance",
+    "sim_time_s",
+    "run_time_s",
+    "plan_time_s",
+)
 
 
 @pytest.fixture(scope="module")
 def ics_file(tmp_path_factory):
-    ics = [{"box": [2.0, -1.5], "finger": [-2.0, 1.0]}, {"box": [-3.0, 3.5], "finger": [0.5, -4.0]},
-           {"box": [0.6, 2.2], "finger": [3.0, 3.0]}]
+    ics = [
+        {"box": [2.0, -1.5], "finger": [-2.0, 1.0]},
+        {"box": [-3.0, 3.5], "finger": [0.5, -4.0]},
+        {"box": [0.6, 2.2], "finger": [3.0, 3.0]},
+    ]
     path = tmp_path_factory.mktemp("ics") / "ics.json"
     path.write_text(json.dumps(ics))
     return path
@@ -31,8 +45,11 @@ def ics_file(tmp_path_factory):
 @pytest.fixture(scope="module")
 def open_loop(tmp_path_factory, ics_file):
     out = tmp_path_factory.mktemp("eval") / "open_loop"
-    summary = evaluate(EvaluateConfig(policies=["gcs-open-loop"], initial_conditions=str(ics_file), runs=1,
-                                      output_dir=str(out), videos=1))
+    summary = evaluate(
+        EvaluateConfig(
+            policies=["gcs-open-loop"], initial_conditions=str(ics_file), runs=1, output_dir=str(out), videos=1
+        )
+    )
     return out, summary
 
 
@@ -82,18 +99,25 @@ def test_figures_and_video_are_real_images(open_loop):
 
 
 def _without_timing(recs):
-    return sorted((json.dumps({k: v for k, v in r.items() if k not in TIMING_FIELDS}, sort_keys=True)
-                   for r in recs))
+    return sorted(json.dumps({k: v for k, v in r.items() if k not in TIMING_FIELDS}, sort_keys=True) for r in recs)
 
 
 def test_killed_and_rerun_evaluation_gives_the_same_records(tmp_path, ics_file):
-    args = ["--policy", "gcs-open-loop", "--policy", "gcs-closed-loop", "--disturbances", "--initial-conditions",
-            str(ics_file), "--runs", "1", "--videos", "0"]
+    args = [
+        "--policies=[gcs-open-loop,gcs-closed-loop]",
+        "--disturbances=true",
+        f"--initial_conditions={ics_file}",
+        "--runs=1",
+        "--videos=0",
+    ]
     full = tmp_path / "full"
-    subprocess.run([sys.executable, "-m", "lerobot_gcs_push.cli", "evaluate", *args, "--output-dir", str(full)],
-                   check=True, capture_output=True)
+    subprocess.run(
+        [sys.executable, "-m", "lerobot_gcs_push.cli", "evaluate", *args, f"--output_dir={full}"],
+        check=True,
+        capture_output=True,
+    )
     killed = tmp_path / "killed"
-    cmd = [sys.executable, "-m", "lerobot_gcs_push.cli", "evaluate", *args, "--output-dir", str(killed)]
+    cmd = [sys.executable, "-m", "lerobot_gcs_push.cli", "evaluate", *args, f"--output_dir={killed}"]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     runs = killed / "runs.jsonl"
     deadline = time.time() + 300
@@ -110,14 +134,23 @@ def test_killed_and_rerun_evaluation_gives_the_same_records(tmp_path, ics_file):
     assert len(read_runs(runs)) == 9  # 3 ICs x (open loop, closed loop, closed loop with disturbances)
 
 
-@pytest.mark.parametrize("args, needle", [
-    (["--policy", "gcs-teleop"], "unknown policy"),
-    (["--policy", "/nonexistent/pretrained_model"], "unknown policy"),
-    (["--policy", "gcs-open-loop", "--initial-conditions", "/nonexistent.json"], "does not exist"),
-])
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--policies=[gcs-teleop]"], "unknown policy"),
+        (["--policies=[/nonexistent/pretrained_model]"], "unknown policy"),
+        (["--policies=[gcs-open-loop]", "--initial_conditions=/nonexistent.json"], "does not exist"),
+        (["--sampler=hardest"], "unknown sampler"),
+        (["--runs=0"], "must be >= 1"),
+        (["--runs=many"], "runs"),
+    ],
+)
 def test_bad_input_fails_before_any_rollout(tmp_path, args, needle):
-    res = subprocess.run([sys.executable, "-m", "lerobot_gcs_push.cli", "evaluate", *args, "--output-dir",
-                          str(tmp_path / "o")], capture_output=True, text=True)
+    res = subprocess.run(
+        [sys.executable, "-m", "lerobot_gcs_push.cli", "evaluate", *args, f"--output_dir={tmp_path / 'o'}"],
+        capture_output=True,
+        text=True,
+    )
     assert res.returncode != 0 and needle in res.stderr
     assert not (tmp_path / "o" / "runs.jsonl").exists()
 
@@ -125,9 +158,19 @@ def test_bad_input_fails_before_any_rollout(tmp_path, args, needle):
 def test_malformed_initial_conditions_are_named(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps([{"box": [1, 2]}]))
-    res = subprocess.run([sys.executable, "-m", "lerobot_gcs_push.cli", "evaluate", "--policy", "gcs-open-loop",
-                          "--initial-conditions", str(bad), "--output-dir", str(tmp_path / "o")],
-                         capture_output=True, text=True)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "lerobot_gcs_push.cli",
+            "evaluate",
+            "--policies=[gcs-open-loop]",
+            f"--initial_conditions={bad}",
+            f"--output_dir={tmp_path / 'o'}",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert res.returncode != 0 and "entry 0" in res.stderr
     overlap = tmp_path / "overlap.json"
     overlap.write_text(json.dumps([{"box": [0, 0], "finger": [0.5, 0]}]))

@@ -187,7 +187,7 @@ def test_cli_plan_json_lines(tmp_path):
     f = tmp_path / "ics.json"
     f.write_text(json.dumps(ics))
     out = subprocess.run(
-        [sys.executable, "-m", "lerobot_gcs_push.cli", "plan", "--initial-conditions", str(f), "--json"],
+        [sys.executable, "-m", "lerobot_gcs_push.cli", "plan", f"--initial_conditions={f}", "--jsonl=true"],
         capture_output=True,
         text=True,
         check=True,
@@ -204,7 +204,7 @@ def test_cli_plan_json_lines(tmp_path):
 
 def test_cli_plan_rejects_overlap():
     res = subprocess.run(
-        [sys.executable, "-m", "lerobot_gcs_push.cli", "plan", "--box", "0", "0", "--finger", "0.4", "0"],
+        [sys.executable, "-m", "lerobot_gcs_push.cli", "plan", "--box=[0,0]", "--finger=[0.4,0]"],
         capture_output=True,
         text=True,
         check=False,

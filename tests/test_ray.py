@@ -158,20 +158,13 @@ def test_a_killed_driver_resumes_keeping_its_finished_shards(tmp_path, cluster, 
         "-m",
         "lerobot_gcs_push.cli",
         "generate",
-        "--episodes",
-        str(N),
-        "--repo-id",
-        "local/killed",
-        "--root",
-        str(root),
-        "--workers",
-        "1",
-        "--shard-size",
-        "1",
-        "--backend",
-        "ray",
-        "--ray-address",
-        cluster,
+        f"--episodes={N}",
+        "--repo_id=local/killed",
+        f"--root={root}",
+        "--workers=1",
+        "--shard_size=1",
+        "--backend=ray",
+        f"--ray_address={cluster}",
     ]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     deadline = time.time() + 300
@@ -239,7 +232,7 @@ def test_pools_return_every_result_and_report_a_worker_that_keeps_dying(cluster)
 def test_bad_backend_settings_are_named():
     with pytest.raises(ValueError, match="unknown backend"):
         GenerateConfig(backend="dask")
-    with pytest.raises(ValueError, match="needs --backend ray"):
+    with pytest.raises(ValueError, match="needs backend ray"):
         EvaluateConfig(ray_address="auto")
     with pytest.raises(ValueError, match="shard_size"):
         GenerateConfig(shard_size=0)
