@@ -14,20 +14,20 @@ export HF_HUB_OFFLINE=1
 R=outputs/active/round1
 
 # The base data: the first 1000 of run 7's demonstrations (same seed, same Sobol stream).
-.venv/bin/gcs-push generate --episodes 1000 --repo-id local/gcs_push_box_1000 --workers 2
+.venv/bin/gcs-push generate --episodes=1000 --repo_id=local/gcs_push_box_1000 --workers=2
 
 # 1. Roll run 7 out on hard initial conditions (a seed apart from every evaluation set), with and without
 #    disturbances. (Planned: 40 more on the Sobol stream, seed 4001; dropped for the session's time.)
-.venv/bin/gcs-push evaluate --policy policies/diffusion_cpu --disturbances --sampler hard --seed 4000 \
-    --num-initial-conditions 60 --runs 1 --timeout-s 60 --workers 2 --videos 0 --output-dir $R/rollouts_hard
+.venv/bin/gcs-push evaluate --policies=[policies/diffusion_cpu] --disturbances=true --sampler=hard --seed=4000 \
+    --num_initial_conditions=60 --runs=1 --timeout_s=60 --workers=2 --videos=0 --output_dir=$R/rollouts_hard
 
 # 2. Branch states labelled by the closed-loop expert.
-.venv/bin/gcs-push collect --rollouts $R/rollouts_hard --repo-id local/gcs_push_r1_active --workers 2 --resume
+.venv/bin/gcs-push collect --rollouts=[$R/rollouts_hard] --repo_id=local/gcs_push_r1_active --workers=2 --resume=true
 
 # The control: as many frames of fresh hard-sampler GCS demonstrations (FRAMES = the active data's).
 FRAMES=$(.venv/bin/python -c "import json,os;print(json.load(open(os.path.expanduser('~/.cache/huggingface/lerobot/local/gcs_push_r1_active/meta/info.json')))['total_frames'])")
-.venv/bin/gcs-push generate --episodes 2000 --frames "$FRAMES" --sampler hard --seed 4002 \
-    --repo-id local/gcs_push_r1_control --workers 2 --resume
+.venv/bin/gcs-push generate --episodes=2000 --frames="$FRAMES" --sampler=hard --seed=4002 \
+    --repo_id=local/gcs_push_r1_control --workers=2 --resume=true
 
 # 3. Merges, with LeRobot's aggregation (delete a half-written output folder before re-running one).
 for arm in active control; do
@@ -45,7 +45,9 @@ for arm in active control; do
 done
 
 # 5. Evaluate: the hard set, run 7 beside both arms.
-.venv/bin/gcs-push evaluate --policy gcs-open-loop --policy policies/diffusion_cpu \
-    --policy experiments/active_data/round1/active_step3000 --policy experiments/active_data/round1/control_step3000 \
-    --sampler hard --seed 3000 --num-initial-conditions 20 --runs 5 --timeout-s 60 --workers 2 --videos 1 \
-    --output-dir results/active_round1_hard
+# (run 7 from a copy of policies/diffusion_cpu as of commit 3bc727d, so that its label stays its own)
+mkdir -p outputs/policies && cp -r policies/diffusion_cpu outputs/policies/run7
+.venv/bin/gcs-push evaluate \
+    --policies=[gcs-open-loop,outputs/policies/run7,experiments/active_data/round1/active_step3000,experiments/active_data/round1/control_step3000] \
+    --sampler=hard --seed=3000 --num_initial_conditions=20 --runs=5 --timeout_s=60 --workers=2 --videos=1 \
+    --output_dir=results/active_round1_hard
