@@ -17,7 +17,6 @@ policy will meet; its action chunks are what the policy should have done there.
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +25,7 @@ import numpy as np
 from lerobot_gcs_push.dataset import GenerateConfig, GenerateReport, dataset_root, generate
 from lerobot_gcs_push.evaluation import GCS_POLICIES, read_runs
 from lerobot_gcs_push.expert import plannable
+from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.scene import Scene
 
 
@@ -136,9 +136,7 @@ def collect(cfg: CollectConfig) -> tuple[GenerateReport, list[dict]]:
     # The list sits beside the dataset (kept for provenance), written whole before generation reads it.
     states_path = root.with_name(root.name + ".branch_states.json")
     if not (cfg.resume and states_path.exists()):
-        states_path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = states_path.with_name("." + states_path.name)
-        tmp.write_text(json.dumps(states))
-        os.replace(tmp, states_path)
+        with atomic_path(states_path) as tmp:
+            tmp.write_text(json.dumps(states))
     gen.initial_conditions = str(states_path)
     return generate(gen), states

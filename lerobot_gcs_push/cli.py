@@ -124,7 +124,7 @@ def run_demo(cfg: DemoConfig) -> None:
 
     from lerobot_gcs_push.dataset import dataset_root
     from lerobot_gcs_push.evaluation import evaluate, variant_label, video_path
-    from lerobot_gcs_push.figures import side_by_side
+    from lerobot_gcs_push.videos import side_by_side
 
     gen = GenerateConfig(
         episodes=cfg.episodes,

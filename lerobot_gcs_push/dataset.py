@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.scene import (
     TASK,
     Scene,
@@ -279,7 +280,8 @@ class WorkDir:
                 diff = {k: (old.get(k), v) for k, v in settings.items() if old.get(k) != v}
                 raise ValueError(f"--resume with different settings than the interrupted run: {diff}")
         self.path.mkdir(parents=True, exist_ok=True)
-        _atomic_write(self.settings_file(), json.dumps(settings, indent=1).encode())
+        with atomic_path(self.settings_file()) as tmp:
+            tmp.write_text(json.dumps(settings, indent=1))
 
     def episode_file(self, index: int) -> Path:
         return self.path / f"episode_{index:06d}.npz"
@@ -290,22 +292,13 @@ class WorkDir:
 
     def save(self, result: dict) -> None:
         meta = result["meta"]
-        path = self.episode_file(meta["index"])
-        tmp = path.with_name("." + path.name)  # not taken for a finished episode until renamed
-        np.savez_compressed(
-            tmp, meta=json.dumps(meta), **{k.replace(".", "__"): v for k, v in result["arrays"].items()}
-        )
-        os.replace(tmp, path)
+        arrays = {k.replace(".", "__"): v for k, v in result["arrays"].items()}
+        with atomic_path(self.episode_file(meta["index"])) as tmp, open(tmp, "wb") as f:
+            np.savez_compressed(f, meta=json.dumps(meta), **arrays)
 
     def load_arrays(self, index: int) -> dict[str, np.ndarray]:
         with np.load(self.episode_file(index), allow_pickle=False) as z:
             return {k: z[k.replace(".", "__")] for k in FEATURE_KEYS}
-
-
-def _atomic_write(path: Path, data: bytes) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
 
 
 # --- the generator -----------------------------------------------------------------------------------

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.scene import (
     TASK,
     Scene,
@@ -249,9 +250,12 @@ class _Runner:
         tdir = self.out / "trajectories" / _slug(label)
         tdir.mkdir(parents=True, exist_ok=True)
         tpath = tdir / f"ic{i:03d}_run{r}.npz"
-        _atomic_savez(tpath, finger=np.array(traj_f), box=np.array(traj_b))
+        with atomic_path(tpath) as tmp, open(tmp, "wb") as f:
+            np.savez_compressed(f, finger=np.array(traj_f), box=np.array(traj_b))
         if frames:
             frames.append(env.render())
+            from lerobot_gcs_push.videos import write_video
+
             write_video(video_path(self.out, label, i), frames, env.fps)
         thr2 = self.cfg.success_thresholds[1]
         regret = self.regret(traj_b, traj_f, chunk) if self.cfg.regret else {}
@@ -332,31 +336,6 @@ def _init_worker(cfg_dict: dict, out: str) -> None:
 
 def _run_job(job: dict) -> dict:
     return _RUNNER["r"].run(job)
-
-
-def _atomic_savez(path: Path, **arrays) -> None:
-    tmp = path.with_name("." + path.name)
-    with open(tmp, "wb") as f:
-        np.savez_compressed(f, **arrays)
-    os.replace(tmp, path)
-
-
-def write_video(path: Path, frames: list[np.ndarray], fps: float) -> None:
-    import av
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name("." + path.name)
-    with av.open(str(tmp), mode="w", format="mp4") as container:
-        stream = container.add_stream("mpeg4", rate=int(round(fps)))
-        stream.height, stream.width = frames[0].shape[:2]
-        stream.pix_fmt = "yuv420p"
-        stream.bit_rate = 2_000_000
-        for img in frames:
-            for packet in stream.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="rgb24")):
-                container.mux(packet)
-        for packet in stream.encode():
-            container.mux(packet)
-    os.replace(tmp, path)
 
 
 # --- the records ----------------------------------------------------------------------------------------

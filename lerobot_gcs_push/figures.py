@@ -156,55 +156,6 @@ def fig_regret(cfg, out: Path, records: list[dict]) -> Path | None:
     return path
 
 
-def side_by_side(videos: list[Path], labels: list[str], out: Path, gif: Path | None = None, gif_every: int = 3) -> Path:
-    """One video of several rollouts from the same initial condition, side by side and in step (a run
-    that ends first holds its last frame), each under its label; optionally a GIF for the README."""
-    import av
-    import cv2
-
-    clips = []
-    for path in videos:
-        with av.open(str(path)) as container:
-            clips.append([f.to_ndarray(format="rgb24") for f in container.decode(video=0)])
-    if not clips or not all(clips):
-        raise ValueError(f"no frames in {videos}")
-    n = max(len(c) for c in clips)
-    frames = []
-    for k in range(n):
-        tiles = []
-        for clip, label in zip(clips, labels):
-            img = np.ascontiguousarray(clip[min(k, len(clip) - 1)])
-            done = k >= len(clip) - 1
-            cv2.putText(
-                img,
-                label + (" (done)" if done else ""),
-                (8, 22),
-                cv2.FONT_HERSHEY_SIMPLEX,
-                0.55,
-                (0, 0, 0),
-                1,
-                cv2.LINE_AA,
-            )
-            tiles.append(img)
-        frames.append(np.hstack(tiles))
-    from lerobot_gcs_push.evaluation import write_video
-
-    write_video(out, frames, Scene.fps)
-    if gif is not None:
-        from PIL import Image
-
-        small = [Image.fromarray(f).resize((f.shape[1] // 2, f.shape[0] // 2)) for f in frames[::gif_every]]
-        small[0].save(
-            gif,
-            save_all=True,
-            append_images=small[1:],
-            duration=int(1000 * gif_every / Scene.fps),
-            loop=0,
-            optimize=True,
-        )
-    return out
-
-
 def _rect(center, half, color, alpha):
     from matplotlib.patches import Rectangle
 

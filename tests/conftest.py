@@ -7,3 +7,25 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 # LeRobot reads HF_LEROBOT_HOME once, at import: point it at a private cache before anything imports
 # lerobot, so tests never touch (or depend on) the user's real cache.
 os.environ["HF_LEROBOT_HOME"] = tempfile.mkdtemp(prefix="gcs_push_lerobot_home_")
+
+
+def gcs_push(*args: str) -> list[str]:
+    """The `gcs-push` command line, run by this interpreter."""
+    import sys
+
+    return [sys.executable, "-m", "lerobot_gcs_push.cli", *args]
+
+
+def kill_when(cmd: list[str], ready, timeout_s: float = 300.0) -> None:
+    """Start `cmd` in a session of its own and SIGKILL the whole group as soon as `ready()` holds (or the
+    command ends, or the timeout passes): an interruption at a chosen point, like an OOM kill."""
+    import signal
+    import subprocess
+    import time
+
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.time() + timeout_s
+    while not ready() and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.1)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()

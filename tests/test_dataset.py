@@ -4,14 +4,12 @@ from __future__ import annotations
 
 import hashlib
 import os
-import signal
 import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import gcs_push, kill_when
 
 from lerobot_gcs_push.dataset import FEATURE_KEYS, GenerateConfig, generate, read_episode_metadata
 from lerobot_gcs_push.scene import Scene
@@ -133,23 +131,9 @@ def test_worker_count_and_interruption_do_not_change_the_dataset(tmp_path, refer
     assert _digest(Path(two.root)) == _digest(Path(report.root))
 
     root = tmp_path / "killed"
-    cmd = [
-        sys.executable,
-        "-m",
-        "lerobot_gcs_push.cli",
-        "generate",
-        f"--episodes={N}",
-        "--repo_id=local/killed",
-        f"--root={root}",
-        "--workers=1",
-    ]
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    cmd = gcs_push("generate", f"--episodes={N}", "--repo_id=local/killed", f"--root={root}", "--workers=1")
     work = root.with_name(root.name + ".work")
-    deadline = time.time() + 300
-    while not list(work.glob("episode_*.npz")) and time.time() < deadline and proc.poll() is None:
-        time.sleep(0.2)
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait()
+    kill_when(cmd, lambda: bool(list(work.glob("episode_*.npz"))))
     assert not root.exists(), "a killed run must leave no dataset in the cache"
     res = subprocess.run(cmd, capture_output=True, text=True)
     assert res.returncode != 0 and "--resume" in res.stderr

@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 import json
-import os
-import signal
 import subprocess
-import sys
-import time
 
 import numpy as np
 import pytest
+from conftest import gcs_push, kill_when
 
 from lerobot_gcs_push.evaluation import TIMING_FIELDS, EvaluateConfig, evaluate, read_runs
 
@@ -112,19 +109,14 @@ def test_killed_and_rerun_evaluation_gives_the_same_records(tmp_path, ics_file):
     ]
     full = tmp_path / "full"
     subprocess.run(
-        [sys.executable, "-m", "lerobot_gcs_push.cli", "evaluate", *args, f"--output_dir={full}"],
+        gcs_push("evaluate", *args, f"--output_dir={full}"),
         check=True,
         capture_output=True,
     )
     killed = tmp_path / "killed"
-    cmd = [sys.executable, "-m", "lerobot_gcs_push.cli", "evaluate", *args, f"--output_dir={killed}"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    cmd = gcs_push("evaluate", *args, f"--output_dir={killed}")
     runs = killed / "runs.jsonl"
-    deadline = time.time() + 300
-    while time.time() < deadline and proc.poll() is None and not (runs.exists() and len(read_runs(runs)) >= 2):
-        time.sleep(0.1)
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait()
+    kill_when(cmd, lambda: runs.exists() and len(read_runs(runs)) >= 2)
     n_before = len(read_runs(runs))
     assert 0 < n_before < 9
     with open(runs, "a") as f:  # a line torn by the kill
@@ -147,7 +139,7 @@ def test_killed_and_rerun_evaluation_gives_the_same_records(tmp_path, ics_file):
 )
 def test_bad_input_fails_before_any_rollout(tmp_path, args, needle):
     res = subprocess.run(
-        [sys.executable, "-m", "lerobot_gcs_push.cli", "evaluate", *args, f"--output_dir={tmp_path / 'o'}"],
+        gcs_push("evaluate", *args, f"--output_dir={tmp_path / 'o'}"),
         capture_output=True,
         text=True,
     )
@@ -159,15 +151,9 @@ def test_malformed_initial_conditions_are_named(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps([{"box": [1, 2]}]))
     res = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "lerobot_gcs_push.cli",
-            "evaluate",
-            "--policies=[gcs-open-loop]",
-            f"--initial_conditions={bad}",
-            f"--output_dir={tmp_path / 'o'}",
-        ],
+        gcs_push(
+            "evaluate", "--policies=[gcs-open-loop]", f"--initial_conditions={bad}", f"--output_dir={tmp_path / 'o'}"
+        ),
         capture_output=True,
         text=True,
     )

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 
 import numpy as np
 import pytest
+from conftest import gcs_push
 
 from lerobot_gcs_push.planner import GcsPlanner, SolverError, brute_force, build_graph
 from lerobot_gcs_push.planner.plan import APPROACH, FREE, PUSH, RETREAT, Speeds
@@ -187,7 +187,7 @@ def test_cli_plan_json_lines(tmp_path):
     f = tmp_path / "ics.json"
     f.write_text(json.dumps(ics))
     out = subprocess.run(
-        [sys.executable, "-m", "lerobot_gcs_push.cli", "plan", f"--initial_conditions={f}", "--jsonl=true"],
+        gcs_push("plan", f"--initial_conditions={f}", "--jsonl=true"),
         capture_output=True,
         text=True,
         check=True,
@@ -204,7 +204,7 @@ def test_cli_plan_json_lines(tmp_path):
 
 def test_cli_plan_rejects_overlap():
     res = subprocess.run(
-        [sys.executable, "-m", "lerobot_gcs_push.cli", "plan", "--box=[0,0]", "--finger=[0.4,0]"],
+        gcs_push("plan", "--box=[0,0]", "--finger=[0.4,0]"),
         capture_output=True,
         text=True,
         check=False,

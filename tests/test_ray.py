@@ -10,15 +10,12 @@ from __future__ import annotations
 import io
 import json
 import os
-import signal
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import gcs_push, kill_when
 
 # Before Ray is imported: without it, Ray swaps 127.0.0.1 for the machine's reachable address and its
 # servers listen there; with it, the whole cluster (GCS, raylet, workers) listens on loopback only.
@@ -153,10 +150,7 @@ def test_a_killed_driver_resumes_keeping_its_finished_shards(tmp_path, cluster, 
     shard size and worker count) takes them as they are: their episodes keep the wall times they were run in."""
     root = tmp_path / "killed"
     shards = tmp_path / "killed.shards"
-    cmd = [
-        sys.executable,
-        "-m",
-        "lerobot_gcs_push.cli",
+    cmd = gcs_push(
         "generate",
         f"--episodes={N}",
         "--repo_id=local/killed",
@@ -165,13 +159,8 @@ def test_a_killed_driver_resumes_keeping_its_finished_shards(tmp_path, cluster, 
         "--shard_size=1",
         "--backend=ray",
         f"--ray_address={cluster}",
-    ]
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-    deadline = time.time() + 300
-    while not list(shards.glob("shard_*")) and time.time() < deadline and proc.poll() is None:
-        time.sleep(0.1)
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait()
+    )
+    kill_when(cmd, lambda: bool(list(shards.glob("shard_*"))))
     assert not root.exists(), "a killed run must leave no dataset"
     finished = [json.loads((p / SHARD_FILE).read_text()) for p in shards.glob("shard_*")]
     assert 0 < len(finished) < N

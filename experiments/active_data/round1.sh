@@ -2,8 +2,9 @@
 # Active data, round 1 (session 10): run 7 (policies/diffusion_cpu) -> round 1, against an equal-cost control.
 # Every step resumes after a kill (evaluate and generate/collect keep their finished work; re-run the line).
 # Settings fixed before any evaluation of the fine-tuned weights:
-#   - both arms fine-tune run 7 for 3000 steps of batch 32, bf16, peak lr 1e-4 (run 7's), seed 8000, on
-#     the first 1000 of run 7's 3000 demonstrations plus their added data; step 3000 is the one evaluated;
+#   - both arms fine-tune run 7 for 2000 steps of batch 32, bf16, peak lr 1e-4 (run 7's), seed 8000, on
+#     the first 1000 of run 7's 3000 demonstrations plus their added data; step 2000 is the one evaluated
+#     (planned 3000; cut to 2000 at step 40 of the first arm, before any evaluation, to fit the session);
 #   - the arms differ only in the added data: active = expert labels of the policy's own states;
 #     control = fresh GCS demonstrations from the hard sampler (the best non-interactive sampler for the
 #     failures seen), as many frames as the active data (`--frames`);
@@ -39,15 +40,15 @@ done
 for arm in active control; do
     OMP_NUM_THREADS=2 .venv/bin/lerobot-train --config_path=configs/policy/diffusion_cpu.json \
         --policy.path=policies/diffusion_cpu --dataset.repo_id=local/gcs_push_r1_${arm}_merged \
-        --output_dir=outputs/train/r1_${arm} --job_name=r1_${arm} --steps=3000 --save_freq=1000 \
+        --output_dir=outputs/train/r1_${arm} --job_name=r1_${arm} --steps=2000 --save_freq=1000 \
         --policy.use_amp=true --policy.optimizer_lr=1e-4 --seed=8000 --num_workers=1
-    .venv/bin/python -c "from lerobot_gcs_push.checkpoints import export_policy; export_policy('outputs/train/r1_${arm}/checkpoints/003000/pretrained_model', 'experiments/active_data/round1/${arm}_step3000')"
+    .venv/bin/python -c "from lerobot_gcs_push.checkpoints import export_policy; export_policy('outputs/train/r1_${arm}/checkpoints/002000/pretrained_model', 'experiments/active_data/round1/${arm}_step2000')"
 done
 
 # 5. Evaluate: the hard set, run 7 beside both arms.
 # (run 7 from a copy of policies/diffusion_cpu as of commit 3bc727d, so that its label stays its own)
 mkdir -p outputs/policies && cp -r policies/diffusion_cpu outputs/policies/run7
 .venv/bin/gcs-push evaluate \
-    --policies=[gcs-open-loop,outputs/policies/run7,experiments/active_data/round1/active_step3000,experiments/active_data/round1/control_step3000] \
+    --policies=[gcs-open-loop,outputs/policies/run7,experiments/active_data/round1/active_step2000,experiments/active_data/round1/control_step2000] \
     --sampler=hard --seed=3000 --num_initial_conditions=20 --runs=5 --timeout_s=60 --workers=2 --videos=1 \
     --output_dir=results/active_round1_hard
