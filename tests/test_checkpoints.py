@@ -1,0 +1,66 @@
+"""The shipped policy directory: half-precision export, loading as LeRobot does, no unpack step."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lerobot_gcs_push.checkpoints import MODEL_FILE, export_policy, is_pretrained_dir
+
+SHIPPED = Path(__file__).resolve().parents[1] / "policies" / "diffusion_cpu"
+
+
+def test_the_shipped_policy_is_a_pretrained_model_directory_in_fp16():
+    from safetensors.torch import load_file
+
+    assert is_pretrained_dir(SHIPPED)
+    tensors = load_file(SHIPPED / MODEL_FILE)
+    floats = [t for t in tensors.values() if t.is_floating_point()]
+    assert floats and all(str(t.dtype) == "torch.float16" for t in floats)
+    assert (SHIPPED / MODEL_FILE).stat().st_size < 32 * 2**20  # the repository's limit per version
+    config = json.loads((SHIPPED / "config.json").read_text())
+    assert config["type"] == "diffusion" and config["pretrained_path"] is None and config["use_amp"] is False
+
+
+def test_export_round_trip_is_exact_and_atomic(tmp_path):
+    """fp16 -> fp32 -> fp16 gives back the very same tensors (every fp16 value is an fp32 value), and a
+    refused export leaves nothing behind."""
+    import torch
+    from safetensors.torch import load_file
+
+    wide = export_policy(SHIPPED, tmp_path / "fp32", dtype="float32")
+    narrow = export_policy(wide, tmp_path / "fp16", dtype="float16")
+    a, b = load_file(SHIPPED / MODEL_FILE), load_file(narrow / MODEL_FILE)
+    assert a.keys() == b.keys()
+    for k in a:
+        assert torch.equal(a[k], b[k]), k
+    with pytest.raises(FileExistsError):
+        export_policy(SHIPPED, narrow)
+    with pytest.raises(FileNotFoundError, match="pretrained_model"):
+        export_policy(tmp_path / "nothing", tmp_path / "out")
+    with pytest.raises(ValueError, match="dtype"):
+        export_policy(SHIPPED, tmp_path / "int", dtype="int8")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fp16", "fp32"]  # no staging folder left
+
+
+def test_the_shipped_policy_acts_through_lerobots_factory_as_it_is():
+    """Loaded by LeRobot's own factory and processors with no unpack step; its first chunk is a finger
+    target inside the commandable square, and the same seed gives the same action."""
+    import gymnasium as gym
+
+    import lerobot_gcs_push  # noqa: F401
+    from lerobot_gcs_push.evaluation import LearnedPolicy
+
+    env = gym.make("GcsPushBox-v0", render_size=96).unwrapped
+    obs, info = env.reset(seed=0)
+    policy = LearnedPolicy(str(SHIPPED), "cpu")
+    actions = []
+    for _ in range(2):
+        policy.reset(obs, info, seed=5)
+        actions.append(policy.act(obs, info))
+    np.testing.assert_array_equal(actions[0], actions[1])
+    assert actions[0].shape == (2,) and np.all(np.abs(actions[0]) <= env.scene.finger_limit + 0.5)
+    assert policy.chunk_steps == 8
