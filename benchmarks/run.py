@@ -39,18 +39,23 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         if name == "env":
             from benchmarks import env_bench as mod
+
             res = mod.run()
         elif name == "planner":
             from benchmarks import planner_bench as mod
+
             res = mod.run(n=10 if args.quick else 40)
         elif name == "dataset":
             from benchmarks import dataset_bench as mod
+
             res = mod.run(episodes=10 if args.quick else 100)
         elif name == "train":
             from benchmarks import train_bench as mod
+
             res = mod.run()
         elif name == "ray":
             from benchmarks import ray_bench as mod
+
             res = mod.run(episodes=6, shard_size=2, copies=2) if args.quick else mod.run(episodes=100)
         else:
             raise SystemExit(f"unknown benchmark {name!r}")
@@ -65,8 +70,13 @@ def main(argv=None) -> int:
                 mark = f"   target {op} {bound:g}: {'met' if ok else 'MISSED'}"
             print(f"  {k:45s} {v:12.4g}{mark}" if isinstance(v, (int, float)) else f"  {k:45s} {v}")
         sys.stdout.flush()
-    meta = {"machine": platform.platform(), "cpus": os.cpu_count(), "load_avg_1m": os.getloadavg()[0],
-            "time": time.strftime("%Y-%m-%d %H:%M:%S"), "quick": args.quick}
+    meta = {
+        "machine": platform.platform(),
+        "cpus": os.cpu_count(),
+        "load_avg_1m": os.getloadavg()[0],
+        "time": time.strftime("%Y-%m-%d %H:%M:%S"),
+        "quick": args.quick,
+    }
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     old = json.loads(Path(args.out).read_text()) if Path(args.out).exists() else {}
     old.update(results)
