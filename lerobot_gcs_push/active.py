@@ -41,6 +41,7 @@ class CollectConfig:
     # run also the slower drift (a wrong-face push costs a few decimetres a chunk). The GCS experts'
     # own chunks stay under 0.5 m, so neither picks noise.
     large_regret_m: float = 0.5
+    # The same, in a failed rollout.
     failed_regret_m: float = 0.25
     keep_fraction: float = 0.05  # of the other chunk starts, for coverage of the policy's distribution
     max_per_run: int = 12  # spread over the run's time, so the decision and the drift after it both count
@@ -54,8 +55,9 @@ class CollectConfig:
     overwrite: bool = False
     # Continue an interrupted collection.
     resume: bool = False
-    # process or ray, and the Ray cluster's address: as for `gcs-push generate`.
+    # process or ray: as for `gcs-push generate`.
     backend: str = "process"
+    # With backend ray: "auto" or "HOST:PORT" joins a running cluster; none starts Ray here.
     ray_address: str | None = None
 
     def __post_init__(self) -> None:
@@ -91,7 +93,11 @@ def branch_states(records: list[dict], cfg: CollectConfig, scene: Scene | None =
             picked = picked[np.unique(np.linspace(0, len(picked) - 1, cfg.max_per_run).round().astype(int))]
         for step, regret, bx, by, fx, fy in picked:
             box, finger = plannable(scene, [bx, by], [fx, fy], clearance=cfg.clearance)
-            if np.max(np.abs(box)) > scene.box_limit or scene.box_goal_distance(box) <= scene.success_threshold:
+            if scene.box_goal_distance(box) <= scene.success_threshold:
+                continue
+            try:  # the env's own checks: box and finger inside their workspaces, no overlap
+                scene.validate_state(box, finger)
+            except ValueError:
                 continue
             out.append(
                 {

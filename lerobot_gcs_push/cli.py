@@ -52,17 +52,21 @@ class PlanConfig:
 class DemoConfig:
     # GCS demonstrations to write (skipped when the dataset exists and overwrite is false).
     episodes: int = 100
+    # The dataset's LeRobot id (written to $HF_LEROBOT_HOME/<repo_id>).
     repo_id: str = "local/gcs_push_box"
     # Worker processes for generation and evaluation.
     workers: int = 2
     # The experts' evaluation: initial conditions x runs, with and without disturbances.
     num_initial_conditions: int = 20
+    # Runs per initial condition.
     runs: int = 5
+    # Where the experts' and the policy's evaluations, videos and the side-by-side GIF go.
     output_dir: str = "outputs/demo"
     # A LeRobot pretrained_model directory to show beside GCS (empty: skip).
     policy: str = "policies/diffusion_cpu"
     # Initial conditions for the policy beside GCS (one run each, one side-by-side video each).
     policy_ics: int = 3
+    # Regenerate the dataset and redo both evaluations.
     overwrite: bool = False
 
 
@@ -148,6 +152,7 @@ def run_demo(cfg: DemoConfig) -> None:
             output_dir=str(out / "experts"),
             workers=cfg.workers,
             dataset=cfg.repo_id,
+            overwrite=cfg.overwrite,
         )
     )
     print(experts["tables_md"])
@@ -161,6 +166,7 @@ def run_demo(cfg: DemoConfig) -> None:
             workers=cfg.workers,
             timeout_s=60.0,
             videos=cfg.policy_ics,
+            overwrite=cfg.overwrite,
         )
         print(evaluate(ev)["tables_md"])
         labels = [variant_label(p, False) for p in ev.policies]

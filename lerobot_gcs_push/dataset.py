@@ -32,6 +32,7 @@ import numpy as np
 from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.scene import (
     TASK,
+    Disturbances,
     Scene,
     check_sampler,
     episode_seed,
@@ -105,6 +106,19 @@ class GenerateConfig:
         if self.expert not in EXPERTS:
             raise ValueError(f"unknown expert {self.expert!r}: choose one of {EXPERTS}")
         check_sampler(self.sampler)
+        from lerobot_gcs_push.planner import METHODS
+
+        if self.method not in METHODS:
+            raise ValueError(f"unknown method {self.method!r}: choose one of {METHODS}")
+        if self.image_size < 1 or not self.max_sim_time_s > 0:
+            raise ValueError("image_size must be >= 1 and max_sim_time_s positive")
+        per_s = round(1 / Disturbances.tick_s)
+        if self.fps <= 0 or per_s % self.fps:  # an env step is a whole number of disturbance ticks
+            raise ValueError(f"fps must divide {per_s}, got {self.fps}")
+        if self.initial_conditions:  # refused before any worker starts, each entry named
+            scene = Scene()
+            for i, ic in enumerate(load_initial_conditions(self.initial_conditions)):
+                scene.validate_state(ic["box"], ic["finger"], what=f"initial condition {i}")
         if self.frames is not None and self.frames < 1:
             raise ValueError(f"frames must be >= 1, got {self.frames}")
         if self.shard_size < 1:
@@ -593,12 +607,12 @@ def push_to_hub(repo_id: str, root: Path) -> None:
     """LeRobot's own upload; fails clearly without a network or a token."""
     if os.environ.get("HF_HUB_OFFLINE", "0") not in ("0", "", "false", "False"):
         raise RuntimeError(
-            "--push-to-hub needs the network, but HF_HUB_OFFLINE is set; unset it and log in "
+            "push_to_hub needs the network, but HF_HUB_OFFLINE is set; unset it and log in "
             "with `huggingface-cli login` first"
         )
     from huggingface_hub import get_token
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     if not get_token():
-        raise RuntimeError("--push-to-hub needs a Hugging Face token: run `huggingface-cli login` or set HF_TOKEN")
+        raise RuntimeError("push_to_hub needs a Hugging Face token: run `huggingface-cli login` or set HF_TOKEN")
     LeRobotDataset(repo_id, root=root).push_to_hub()

@@ -29,6 +29,8 @@ from lerobot_gcs_push.scene import (
 )
 
 GCS_POLICIES = ("gcs-open-loop", "gcs-closed-loop")
+# The named evaluation sets: the paper's protocol set (uniform, seed 1000) and the hard set (seed 3000).
+NAMED_SET_SEEDS = {"uniform": 1000, "sobol": 1000, "hard": 3000}
 GCS_CHUNK_STEPS = 8  # the experts act every step; their regret is scored over the CPU preset's chunk length
 TIMING_FIELDS = ("run_time_s", "plan_time_s", "total_time_s")
 # The paper's Tables I and III, for the columns our variants reproduce.
@@ -69,9 +71,11 @@ class EvaluateConfig:
     policies: list[str] = field(default_factory=lambda: ["gcs-open-loop"])
     # A JSON list of {"box": [x, y], "finger": [x, y]}; default: sampled with `sampler` and `seed`.
     initial_conditions: str | None = None
+    # How many initial conditions to sample (without initial_conditions).
     num_initial_conditions: int = 20
-    # Seeds the initial conditions and every run's env (disturbances, diffusion noise).
-    seed: int = 1000
+    # Seeds the initial conditions and every run's env (disturbances, diffusion noise); default: the named
+    # set of the sampler, 1000 (the paper's protocol set, uniform) or 3000 (the hard set).
+    seed: int | None = None
     # The paper samples its evaluation set from the training distribution (uniform); `hard` is the
     # named set of configurations a cloned policy gets wrong (scene.py), with its own seed.
     sampler: str = "uniform"
@@ -79,6 +83,7 @@ class EvaluateConfig:
     # `large_regret_m` is a mistake (the GCS experts stay under 0.5 m per chunk, tracking lag included,
     # unless a disturbance strikes).
     regret: bool = True
+    # Metres of regret that make a chunk a mistake.
     large_regret_m: float = 0.5
     # Runs per initial condition.
     runs: int = 5
@@ -107,7 +112,7 @@ class EvaluateConfig:
 
     def __post_init__(self) -> None:
         if not self.policies:
-            raise ValueError("give at least one --policy")
+            raise ValueError("give at least one policy")
         if self.runs < 1 or self.num_initial_conditions < 1 or self.workers < 1:
             raise ValueError("runs, num_initial_conditions and workers must be >= 1")
         if not self.timeout_s > 0:
@@ -119,6 +124,8 @@ class EvaluateConfig:
                     f"pretrained_model directory (with config.json)"
                 )
         check_sampler(self.sampler)
+        if self.seed is None:
+            self.seed = NAMED_SET_SEEDS[self.sampler]
         if self.device not in ("cpu", "cuda", "mps") and not self.device.startswith("cuda:"):
             raise ValueError(f"unknown device {self.device!r}")
         from lerobot_gcs_push.workers import check_backend
@@ -378,11 +385,13 @@ def evaluate(cfg: EvaluateConfig) -> dict:
             f"{out} holds an evaluation with other initial conditions or settings; "
             f"pass --overwrite=true or choose another --output_dir"
         )
-    settings_path.write_text(json.dumps(settings, indent=1))
+    with atomic_path(settings_path) as tmp:
+        tmp.write_text(json.dumps(settings, indent=1))
 
     records = read_runs(runs_path)
     # Rewrite without any torn last line, so that appends start on a fresh line.
-    runs_path.write_text("".join(json.dumps(r) + "\n" for r in records))
+    with atomic_path(runs_path) as tmp:  # a kill here must not cost the finished runs
+        tmp.write_text("".join(json.dumps(r) + "\n" for r in records))
     done = {_key(r) for r in records}
     jobs = []
     for policy, dist in variants(cfg):
@@ -402,8 +411,10 @@ def evaluate(cfg: EvaluateConfig) -> dict:
     _run_all(cfg, out, jobs, runs_path)
     records = [r for r in read_runs(runs_path) if (r["policy"], r["disturbances"]) in set(variants(cfg))]
     summary = summarize(cfg, records, ics)
-    (out / "summary.json").write_text(json.dumps({k: v for k, v in summary.items() if k != "tables_md"}, indent=1))
-    (out / "tables.md").write_text(summary["tables_md"])
+    with atomic_path(out / "summary.json") as tmp:
+        tmp.write_text(json.dumps({k: v for k, v in summary.items() if k != "tables_md"}, indent=1))
+    with atomic_path(out / "tables.md") as tmp:
+        tmp.write_text(summary["tables_md"])
     from lerobot_gcs_push.figures import make_figures
 
     summary["figures"] = make_figures(cfg, out, records, ics)

@@ -93,7 +93,8 @@ def fig7_trajectories(cfg, out: Path, records: list[dict], ics: list[dict], max_
                 (r for r in records if r["label"] == label and r["initial_condition_index"] == i and r["run"] == 0),
                 None,
             )
-            if rec is None:
+            # Trajectories stay with the outputs (not in results/): a figure redrawn elsewhere skips them.
+            if rec is None or not (out / rec["trajectory"]).is_file():
                 continue
             finger = np.load(out / rec["trajectory"])["finger"]
             if len(finger) < 2:

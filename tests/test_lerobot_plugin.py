@@ -297,6 +297,8 @@ def test_gcs_push_evaluate_runs_a_lerobot_checkpoint(checkpoint, tmp_path):
         traj = np.load(out / r["trajectory"])
         assert r["sim_time_s"] == pytest.approx((len(traj["finger"]) - 1) / 10, abs=1e-6)
         np.testing.assert_allclose(traj["finger"][0], r["finger_initial"], atol=1e-6)
+        # The recorded final distance is the trajectory's last box position, measured independently.
+        assert r["final_distance"] == pytest.approx(np.linalg.norm(traj["box"][-1]), abs=1e-9)
         assert r["success"] == (r["final_distance"] <= 0.1)
         assert r["success"] or r["sim_time_s"] == pytest.approx(3.0)
     assert sum(v["runs"] for v in summary["variants"].values()) == 4
