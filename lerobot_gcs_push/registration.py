@@ -9,8 +9,9 @@ ENV_ID = "GcsPushBox-v0"
 
 
 def register_envs() -> None:
-    """Register `GcsPushBox-v0`; calling again is harmless. Gymnasium calls it through the package's
-    `gymnasium.envs` entry point, and importing the package calls it too (for a registry built before).
+    """Register `GcsPushBox-v0`; calling again is harmless. Importing the package calls it: the one way
+    the id is registered (a `gymnasium.envs` entry point did not register it on `import gymnasium` with the
+    gymnasium that lerobot 0.6.1 installs).
 
     No `max_episode_steps` here: the env truncates itself at `max_sim_time_s`, which depends on its
     kwargs, so a registry TimeLimit could only disagree with it.
