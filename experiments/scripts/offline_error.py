@@ -35,8 +35,8 @@ args = parser.parse_args()
 import torch  # noqa: E402
 from lerobot.datasets.lerobot_dataset import LeRobotDataset  # noqa: E402
 
-from lerobot_gcs_push.scene import TASK  # noqa: E402
 from lerobot_gcs_push.evaluation import LearnedPolicy  # noqa: E402
+from lerobot_gcs_push.scene import TASK  # noqa: E402
 
 torch.set_num_threads(1)
 ds = LeRobotDataset(args.repo_id)
