@@ -294,6 +294,7 @@ class LearnedPolicy:
     def __init__(self, path: str, device: str):
         import torch
         from lerobot.configs.policies import PreTrainedConfig
+        from lerobot.envs.utils import preprocess_observation
         from lerobot.policies.factory import make_policy, make_pre_post_processors
 
         from lerobot_gcs_push.lerobot_plugin import GcsPushEnvConfig
@@ -306,7 +307,7 @@ class LearnedPolicy:
         self.pre, self.post = make_pre_post_processors(
             cfg, pretrained_path=path, preprocessor_overrides={"device_processor": {"device": device}}
         )
-        self.torch = torch
+        self.torch, self._preprocess = torch, preprocess_observation  # resolved once, not at every step
         self.chunk_steps = int(cfg.n_action_steps)  # actions executed per predicted chunk
 
     def reset(self, obs, info: dict, seed: int | None) -> None:
@@ -317,9 +318,7 @@ class LearnedPolicy:
         self.policy.reset()
 
     def act(self, obs, info: dict) -> np.ndarray:
-        from lerobot.envs.utils import preprocess_observation
-
-        batch = preprocess_observation({"pixels": obs["pixels"][None], "agent_pos": obs["agent_pos"][None]})
+        batch = self._preprocess({"pixels": obs["pixels"][None], "agent_pos": obs["agent_pos"][None]})
         batch["task"] = [TASK]
         with self.torch.inference_mode():
             action = self.post(self.policy.select_action(self.pre(batch)))

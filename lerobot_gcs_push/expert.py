@@ -65,16 +65,13 @@ class GcsExpert:
         return {"plan_time_s": self._initial_plan_time_s, "plan": self.plan, "replans": len(self.plans) - 1}
 
     def _replan(self, box, finger) -> Plan:
-        box, finger = self._plannable(np.asarray(box, float), np.asarray(finger, float))
+        box, finger = plannable(self.planner.scene, box, finger)
         t0 = time.perf_counter()
         plan = self.planner.plan(box, finger, self._goal, method=self.config.method)
         self.plan_time_s += time.perf_counter() - t0
         self.plans.append(plan)
         self._schedule, self._k = plan.schedule(self.fps, self.speeds, self.planner.scene.push_lag_s), 0
         return plan
-
-    def _plannable(self, box, finger):
-        return plannable(self.planner.scene, box, finger)
 
     def act(self, obs, info: dict) -> np.ndarray:
         """The next finger command, given the measured box and finger positions."""
