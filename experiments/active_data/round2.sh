@@ -6,9 +6,11 @@
 #     (seed 4011, for the random sets' failures), 1 run each, with and without disturbances; both seeds
 #     apart from every evaluation set (1000, 2000, 3000) and from round 1's (4000, 4002);
 #   - collect with round 1's settings (regret 0.5 m; 0.25 m in failed runs; 5% of the rest; 12 per run);
-#   - fine-tune round 1 for 2000 steps of batch 32, bf16, peak lr 1e-4, seed 8001, on the same 1000 base
+#   - fine-tune round 1 for 1000 steps of batch 32, bf16, peak lr 1e-4, seed 8001, on the same 1000 base
 #     demonstrations plus the round-2 states (round 1's active data is not regenerated: its rollouts were
-#     lost with session 10's machine and would cost 25 min); step 2000 is the one evaluated;
+#     lost with session 10's machine and would cost 25 min); step 1000 is the one evaluated (2000 were
+#     planned; cut to 1000 at 16:55, before any round-2 step ran, because this session's machine trains
+#     at 1.0 step/s, not session 10's 1.5, and 2000 steps would not leave time to evaluate);
 #   - rule for the shipped policy: round 2 replaces policies/diffusion_cpu if its success at 0.1 m on the
 #     hard set (seed 3000, 20 x 5, no disturbances, 60 s) is above round 1's 0.83 and on the protocol set
 #     (seed 1000) at least round 1's 0.95; both results are reported whatever they are.
@@ -45,9 +47,9 @@ fi
 # 4. Fine-tune round 1 (resume a killed run with --resume=true --config_path=<its train_config.json>).
 OMP_NUM_THREADS=2 .venv/bin/lerobot-train --config_path=configs/policy/diffusion_cpu.json \
     --policy.path=outputs/policies/round1 --dataset.repo_id=local/gcs_push_r2_active_merged \
-    --output_dir=outputs/train/r2_active --job_name=r2_active --steps=2000 --save_freq=1000 \
+    --output_dir=outputs/train/r2_active --job_name=r2_active --steps=1000 --save_freq=500 \
     --policy.use_amp=true --policy.optimizer_lr=1e-4 --seed=8001 --num_workers=1
-.venv/bin/python -c "from lerobot_gcs_push.checkpoints import export_policy; export_policy('outputs/train/r2_active/checkpoints/002000/pretrained_model', 'experiments/active_data/round2/active_step2000')"
+.venv/bin/python -c "from lerobot_gcs_push.checkpoints import export_policy; export_policy('outputs/train/r2_active/checkpoints/001000/pretrained_model', 'experiments/active_data/round2/active_step1000')"
 
 # 5. Evaluate on the hard set beside GCS and round 1. The GCS and round-1 rows are round 1's own
 #    (results/active_round1_hard, same seeds; a record does not depend on when or where it ran), copied so
@@ -56,7 +58,7 @@ mkdir -p results/active_round2_hard
 [ -f results/active_round2_hard/runs.jsonl ] || grep -E '"policy": "(gcs-open-loop|experiments/active_data/round1/active_step2000)"' \
     results/active_round1_hard/runs.jsonl > results/active_round2_hard/runs.jsonl
 .venv/bin/gcs-push evaluate \
-    --policies=[gcs-open-loop,experiments/active_data/round1/active_step2000,experiments/active_data/round2/active_step2000] \
+    --policies=[gcs-open-loop,experiments/active_data/round1/active_step2000,experiments/active_data/round2/active_step1000] \
     --sampler=hard --seed=3000 --num_initial_conditions=20 --runs=5 --timeout_s=60 --workers=2 --videos=1 \
     --output_dir=results/active_round2_hard
 # Then, by the rule above, the protocol set (seed 1000), the same way from results/active_round1_seed1000.
