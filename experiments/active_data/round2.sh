@@ -25,7 +25,8 @@ if [ ! -d outputs/policies/round1 ]; then
 fi
 
 # The base data (round1.sh makes it; resumes if present).
-.venv/bin/gcs-push generate --episodes=1000 --repo_id=local/gcs_push_box_1000 --workers=2 --resume=true
+[ -f $C/gcs_push_box_1000/meta/info.json ] || \
+    .venv/bin/gcs-push generate --episodes=1000 --repo_id=local/gcs_push_box_1000 --workers=2 --resume=true
 
 # 1. Rollouts with regret.
 .venv/bin/gcs-push evaluate --policies=[outputs/policies/round1] --disturbances=true --sampler=hard --seed=4010 \
