@@ -96,6 +96,9 @@ def run_generate(cfg: GenerateConfig) -> None:
     from lerobot_gcs_push.dataset import generate
 
     report = generate(cfg)
+    if report.already_finished:
+        print(f"already complete: {report.episodes} demonstrations ({report.frames} frames) in {report.root}")
+        return
     print(
         f"wrote {report.episodes} demonstrations ({report.frames} frames) to {report.root} in "
         f"{report.wall_time_s:.1f} s ({report.episodes_per_min:.1f} per minute); "
@@ -115,6 +118,9 @@ def run_collect(cfg: CollectConfig) -> None:
     from lerobot_gcs_push.active import collect
 
     report, states = collect(cfg)
+    if report.already_finished:
+        print(f"already complete: {report.episodes} labelled branch states ({report.frames} frames) in {report.root}")
+        return
     print(
         f"labelled {report.episodes} of {len(states)} branch states ({report.frames} frames) into {report.root} "
         f"in {report.wall_time_s:.1f} s; {report.failures} expert rollout(s) failed and were left out"

@@ -41,6 +41,7 @@ from lerobot_gcs_push.scene import (
 )
 
 EPISODES_META = "meta/gcs_push_episodes.jsonl"
+SETTINGS_META = "meta/gcs_push_settings.json"  # the settings a finished dataset was made with (see _finished)
 FEATURE_KEYS = ("observation.image", "observation.state", "observation.environment_state", "action")
 
 
@@ -328,6 +329,7 @@ class GenerateReport:
     episodes_per_min: float
     shards: int = 0  # merged into the dataset
     merge_time_s: float = 0.0  # LeRobot's aggregation of the shards
+    already_finished: bool = False  # --resume on a dataset that was already complete: nothing ran
 
 
 def generate(cfg: GenerateConfig) -> GenerateReport:
@@ -342,11 +344,6 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
     if cfg.overwrite:
         for path in (root, work.path, shards):
             shutil.rmtree(path, ignore_errors=True)
-    if root.exists():
-        raise FileExistsError(
-            f"a dataset already exists at {root}: pass --overwrite=true to replace it "
-            "(or choose another --repo_id / --root)"
-        )
     # Where and how the jobs run may change on --resume; what they compute may not.
     settings = {
         k: v
@@ -365,6 +362,8 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
             "shard_size",
         )
     }
+    if root.exists():
+        return _finished(cfg, root, settings)
     if not work.path.exists():  # shards are only trusted with the settings they were made with
         shutil.rmtree(shards, ignore_errors=True)
     work.open(settings, cfg.resume)
@@ -415,7 +414,7 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
         )
     merged = [shard_path(shards, s["start"]) for s in kept if any(m["success"] for m in s["episodes"])]
     t_merge = time.perf_counter()
-    _merge(cfg, root, merged, metas)
+    _merge(cfg, root, merged, metas, settings | {"episodes": cfg.episodes})
     merge_time = time.perf_counter() - t_merge
     shutil.rmtree(shards, ignore_errors=True)
     shutil.rmtree(work.path, ignore_errors=True)
@@ -506,7 +505,38 @@ def _read_shard(path: Path) -> dict | None:
     return json.loads(file.read_text()) if file.exists() else None
 
 
-def _merge(cfg: GenerateConfig, root: Path, shard_roots: list[Path], metas: list[dict]) -> None:
+def _finished(cfg: GenerateConfig, root: Path, settings: dict) -> GenerateReport:
+    """An existing dataset: its report if --resume asks for exactly what it holds, else a named refusal.
+
+    A finished run leaves no work folder, so its settings are kept in the dataset itself: a script that
+    re-runs every step after a kill can pass --resume=true to a step that already finished.
+    """
+    hint = "pass --overwrite=true to replace it (or choose another --repo_id / --root)"
+    if not cfg.resume:
+        raise FileExistsError(f"a dataset already exists at {root}: {hint}")
+    wanted = settings | {"episodes": cfg.episodes}
+    file = root / SETTINGS_META
+    if not file.exists():
+        raise FileExistsError(f"a dataset already exists at {root}, made before its settings were recorded: {hint}")
+    held = json.loads(file.read_text())
+    if held != wanted:
+        diff = {k: (held.get(k), v) for k, v in wanted.items() if held.get(k) != v}
+        raise FileExistsError(f"the finished dataset at {root} was made with other settings {diff}: {hint}")
+    metas = read_episode_metadata(root)
+    return GenerateReport(
+        str(root),
+        cfg.repo_id,
+        episodes=len(metas),
+        frames=sum(m["num_frames"] for m in metas),
+        attempts=0,
+        failures=0,
+        wall_time_s=0.0,
+        episodes_per_min=0.0,
+        already_finished=True,
+    )
+
+
+def _merge(cfg: GenerateConfig, root: Path, shard_roots: list[Path], metas: list[dict], settings: dict) -> None:
     """LeRobot's aggregation of the shards, in index order, into a staging folder moved into place once whole."""
     from lerobot.datasets.aggregate import aggregate_datasets
 
@@ -517,6 +547,7 @@ def _merge(cfg: GenerateConfig, root: Path, shard_roots: list[Path], metas: list
     (staging / EPISODES_META).write_text(
         "".join(json.dumps({"episode_index": i, **meta}) + "\n" for i, meta in enumerate(metas))
     )
+    (staging / SETTINGS_META).write_text(json.dumps(settings, indent=1))
     root.parent.mkdir(parents=True, exist_ok=True)
     os.replace(staging, root)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -123,6 +124,9 @@ def test_collect_records_the_expert_from_the_policy_states(tmp_path):
         assert np.linalg.norm(last["observation.environment_state"].numpy()) < 0.25  # on its way in
     meta = json.loads((tmp_path / "ds.branch_states.json").read_text())
     assert meta == states
+    # A script re-running every step: collecting again with --resume=true finds the work done.
+    again, _ = collect(dataclasses.replace(cfg, resume=True))
+    assert again.already_finished and (again.episodes, again.frames) == (report.episodes, report.frames)
 
 
 def test_the_optimal_plan_has_no_regret_along_its_own_path(tmp_path):

@@ -141,6 +141,14 @@ def test_worker_count_and_interruption_do_not_change_the_dataset(tmp_path, refer
     assert _digest(root) == _digest(Path(report.root))
     assert not work.exists()
 
+    # Resuming a finished run reports it and leaves it alone; asking it for something else is refused.
+    stamp = (root / "meta/info.json").stat().st_mtime_ns
+    res = subprocess.run(cmd + ["--resume=true"], check=True, capture_output=True, text=True)
+    assert f"already complete: {N} demonstrations" in res.stdout
+    assert (root / "meta/info.json").stat().st_mtime_ns == stamp
+    res = subprocess.run(cmd + ["--resume=true", "--seed=1"], capture_output=True, text=True)
+    assert res.returncode != 0 and "other settings" in res.stderr and "'seed'" in res.stderr
+
 
 def test_bad_settings_are_named(tmp_path):
     with pytest.raises(ValueError, match="unknown expert"):
