@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Active data, round 5 (session 13): the weight average of rounds 3 and 4 (shipped by selection.sh) -> round 5.
 # Every step resumes after a kill (re-run the script; delete a half-written merge folder first).
-# Settings fixed before any round-5 step ran (written 23:03, session 13):
+# Settings fixed before any round-5 step ran (written 22:52, session 13):
 #   - rollouts of the average on 30 hard initial conditions (seed 4030) and 20 uniform ones (seed 4031), 1
 #     run each, with and without disturbances (rounds 2 and 4's design, new seeds);
 #   - collect with the command's defaults; the training data are the base demonstrations plus the branch
