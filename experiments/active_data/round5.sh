@@ -75,4 +75,24 @@ CANDIDATES=$P,$E/round5/active_step2000
     --sampler=hard --seed=5001 --num_initial_conditions=40 --runs=3 --timeout_s=60 --workers=2 --videos=0 \
     --output_dir=results/selection_hard_seed5001
 .venv/bin/python experiments/scripts/hard_families.py results/selection_hard_seed5001
-# Then, by the rule, the test sets for a new winner (as selection.sh step 2).
+[ "${STOP_AFTER_VALIDATION:-0}" = 1 ] && exit 0
+
+# 6. (By the rule: round 5 won the second validation set, 0.97 against 0.94 and 0.94.) The test sets, with
+#    and without disturbances, beside GCS and the mean it replaces, whose rows are copied from
+#    results/active_soup_* (a record does not depend on when it ran); this runs round 5's 200 runs per set.
+R5=$E/round5/active_step2000
+KEEP='"policy": "(gcs-open-loop|gcs-closed-loop|experiments/active_data/soup_r3_r4)"'
+for s in seed1000 seed2000 hard; do
+    mkdir -p results/active_round5_$s
+    [ -f results/active_round5_$s/runs.jsonl ] || grep -E "$KEEP" results/active_soup_$s/runs.jsonl > results/active_round5_$s/runs.jsonl
+done
+.venv/bin/gcs-push evaluate --policies=[gcs-open-loop,$P,$R5] --disturbances=true \
+    --seed=1000 --num_initial_conditions=20 --runs=5 --timeout_s=60 --workers=2 --videos=1 \
+    --output_dir=results/active_round5_seed1000
+.venv/bin/gcs-push evaluate --policies=[gcs-open-loop,gcs-closed-loop,$P,$R5] \
+    --disturbances=true --seed=2000 --num_initial_conditions=20 --runs=5 --timeout_s=60 --workers=2 --videos=1 \
+    --output_dir=results/active_round5_seed2000
+.venv/bin/gcs-push evaluate --policies=[gcs-open-loop,gcs-closed-loop,$P,$R5] \
+    --disturbances=true --sampler=hard --seed=3000 --num_initial_conditions=20 --runs=5 --timeout_s=60 \
+    --workers=2 --videos=1 --output_dir=results/active_round5_hard
+.venv/bin/python experiments/scripts/hard_families.py results/active_round5_hard
