@@ -79,3 +79,23 @@ for v in "hard 5003" "uniform 5004"; do
         --output_dir=results/selection_$1_seed$2
 done
 .venv/bin/python experiments/scripts/hard_families.py results/selection_hard_seed5003
+[ "${STOP_AFTER_VALIDATION:-0}" = 1 ] && exit 0
+
+# 6. (By the rule: round 6 won the third validation set, 232 of 240 against round 5's 227.) The test sets,
+#    with and without disturbances, beside GCS and round 5, whose rows are copied from results/active_round5_*
+#    (a record does not depend on when it ran); this runs round 6's 200 runs per set.
+KEEP='"policy": "(gcs-open-loop|gcs-closed-loop|experiments/active_data/round5/active_step2000)"'
+for s in seed1000 seed2000 hard; do
+    mkdir -p results/active_round6_$s
+    [ -f results/active_round6_$s/runs.jsonl ] || grep -E "$KEEP" results/active_round5_$s/runs.jsonl > results/active_round6_$s/runs.jsonl
+done
+.venv/bin/gcs-push evaluate --policies=[gcs-open-loop,$P,$R6] --disturbances=true \
+    --seed=1000 --num_initial_conditions=20 --runs=5 --timeout_s=60 --workers=2 --videos=1 \
+    --output_dir=results/active_round6_seed1000
+.venv/bin/gcs-push evaluate --policies=[gcs-open-loop,gcs-closed-loop,$P,$R6] \
+    --disturbances=true --seed=2000 --num_initial_conditions=20 --runs=5 --timeout_s=60 --workers=2 --videos=1 \
+    --output_dir=results/active_round6_seed2000
+.venv/bin/gcs-push evaluate --policies=[gcs-open-loop,gcs-closed-loop,$P,$R6] \
+    --disturbances=true --sampler=hard --seed=3000 --num_initial_conditions=20 --runs=5 --timeout_s=60 \
+    --workers=2 --videos=1 --output_dir=results/active_round6_hard
+.venv/bin/python experiments/scripts/hard_families.py results/active_round6_hard
