@@ -44,7 +44,9 @@ class CollectConfig:
     # The same, in a failed rollout.
     failed_regret_m: float = 0.25
     keep_fraction: float = 0.05  # of the other chunk starts, for coverage of the policy's distribution
-    max_per_run: int = 12  # spread over the run's time, so the decision and the drift after it both count
+    # Of the states the expert can start from, spread over the run's time, so the decision and the drift
+    # after it both count.
+    max_per_run: int = 12
     # Metres between finger and box at a branch state (contact compliance, Drake's query).
     clearance: float = 0.02
     # Seeds the choice of the other chunk starts and the expert's episodes.
@@ -88,10 +90,8 @@ def branch_states(records: list[dict], cfg: CollectConfig, scene: Scene | None =
         chunks = np.array(rec["regret_chunks"], float)  # step, regret, box x, box y, finger x, finger y
         threshold = cfg.large_regret_m if rec["success"] else cfg.failed_regret_m
         keep = (np.nan_to_num(chunks[:, 1], nan=np.inf) > threshold) | (rng.random(len(chunks)) < cfg.keep_fraction)
-        picked = chunks[keep]
-        if len(picked) > cfg.max_per_run:
-            picked = picked[np.unique(np.linspace(0, len(picked) - 1, cfg.max_per_run).round().astype(int))]
-        for step, regret, bx, by, fx, fy in picked:
+        startable = []
+        for step, regret, bx, by, fx, fy in chunks[keep]:
             box, finger = plannable(scene, [bx, by], [fx, fy], clearance=cfg.clearance)
             if scene.box_goal_distance(box) <= scene.success_threshold:
                 continue
@@ -99,6 +99,14 @@ def branch_states(records: list[dict], cfg: CollectConfig, scene: Scene | None =
                 scene.validate_state(box, finger)
             except ValueError:
                 continue
+            startable.append((step, regret, box, finger))
+        # Capped after the checks: a failed run that pinned the box outside its workspace (a corner box
+        # pushed into the wall) spends its whole budget on the seconds before, where the mistake was made.
+        if len(startable) > cfg.max_per_run:
+            startable = [
+                startable[i] for i in np.unique(np.linspace(0, len(startable) - 1, cfg.max_per_run).round().astype(int))
+            ]
+        for step, regret, box, finger in startable:
             out.append(
                 {
                     "box": box.round(6).tolist(),

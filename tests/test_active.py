@@ -100,6 +100,13 @@ def test_branch_states_pick_mistakes_cap_them_over_time_and_skip_what_cannot_sta
         assert SCENE.finger_box_gap(s["box"], s["finger"]) >= cfg.clearance - 1e-6
     everything = branch_states([failed], CollectConfig(rollouts=[str(tmp_path)], keep_fraction=1.0, max_per_run=99))
     assert len(everything) == 7
+    # A failed run that pushes the box out of its workspace (x > 4.5) from the fourth chunk on: the cap
+    # spreads over the four states the expert can start from, not over all seven.
+    pinned = _record(False, [0.4] * 7, box=(3.0, 0.0), finger=(2.0, 0.0))
+    for chunk, x in zip(pinned["regret_chunks"], [3.0, 3.4, 3.8, 4.2, 5.0, 5.5, 6.0]):
+        chunk[2] = x
+    states = branch_states([pinned], cfg)
+    assert [s["source"]["step"] for s in states] == [0, 16, 24]
 
 
 @pytest.mark.slow

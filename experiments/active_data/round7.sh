@@ -3,14 +3,17 @@
 # corners, the family round 6 still fails (seed 2000 IC 9, unseen hard seed 5005 IC 33: the policy pushes a
 # corner box into the wall from its goal side, where it pins).
 # Every step resumes after a kill (re-run the script; delete a half-written merge folder first).
-# Settings fixed before any round-7 step ran (written 03:40, session 15):
+# Settings fixed before any round-7 step ran (written 03:30, session 15):
 #   - rollouts of round 6, 1 run each, with and without disturbances, on 140 initial conditions:
 #       60 of the hard sampler's corner family (the corner ICs among hard seed 4050's first 240),
 #       40 uniform ones whose box lies in a corner region, |x| and |y| >= 2.5 (uniform seed 4051, the
 #          first 40 such), the finger anywhere,
 #       20 of the hard sampler, all families (seed 4052), and 20 uniform (seed 4053), for coverage;
-#   - collect with the command's defaults; the training data are the base demonstrations plus the branch
-#     states of rounds 1, 2, 4, 5, 6 and 7 (every round's, as DAgger does);
+#   - collect with the command's defaults (changed at 03:33, before the collect step ran and with no round-7
+#     result seen: a run's cap of 12 states now applies after the states the expert cannot start from are
+#     dropped; before, a corner run that pinned the box out of its workspace kept 1 to 4); the training
+#     data are the base demonstrations plus the branch states of rounds 1, 2, 4, 5, 6 and 7 (every
+#     round's, as DAgger does);
 #   - fine-tune round 6 for 4000 steps of batch 32, bf16, peak lr 1e-4, seed 8006; step 4000 is the one
 #     evaluated;
 #   - candidates: round 6 (shipped) and round 7;
@@ -35,10 +38,13 @@ commit() {  # commit PATH MESSAGE, waiting for another git process to let go of 
 # 0. The data earlier rounds trained on, rebuilt from what git keeps.
 [ -f $C/gcs_push_box_1000/meta/info.json ] || \
     .venv/bin/gcs-push generate --episodes=1000 --repo_id=local/gcs_push_box_1000 --workers=2 --resume=true
+# Rounds 1-6 picked their states before `collect` capped each run after its checks (03:33, session 15), so
+# their exact states are rebuilt from the lists they kept.
 for r in 1 2 4 5 6; do
     [ -f $C/gcs_push_r${r}_active/meta/info.json ] && continue
-    dirs=$(ls -d $E/round$r/rollouts_* | paste -sd, -)
-    .venv/bin/gcs-push collect --rollouts=[$dirs] --repo_id=local/gcs_push_r${r}_active --workers=2 --resume=true
+    n=$(.venv/bin/python -c "import json; print(len(json.load(open('$E/round$r/branch_states.json'))))")
+    .venv/bin/gcs-push generate --expert=closed-loop --initial_conditions=$E/round$r/branch_states.json \
+        --episodes=$n --repo_id=local/gcs_push_r${r}_active --workers=2 --resume=true
 done
 [ "${STOP_AFTER_REBUILD:-0}" = 1 ] && exit 0
 
