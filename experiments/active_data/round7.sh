@@ -9,11 +9,11 @@
 #       40 uniform ones whose box lies in a corner region, |x| and |y| >= 2.5 (uniform seed 4051, the
 #          first 40 such), the finger anywhere,
 #       20 of the hard sampler, all families (seed 4052), and 20 uniform (seed 4053), for coverage;
-#   - collect with the command's defaults (changed at 03:33, before the collect step ran and with no round-7
-#     result seen: a run's cap of 12 states now applies after the states the expert cannot start from are
-#     dropped; before, a corner run that pinned the box out of its workspace kept 1 to 4); the training
-#     data are the base demonstrations plus the branch states of rounds 1, 2, 4, 5, 6 and 7 (every
-#     round's, as DAgger does);
+#   - collect with the command's defaults (changed at 03:33, before the collect step ran, with only the
+#     rollouts' progress bars seen: a run's cap of 12 states now applies after the states the expert
+#     cannot start from are dropped; before, a corner run that pinned the box out of its workspace kept 1
+#     to 4); the training data are the base demonstrations plus the branch states of rounds 1, 2, 4, 5, 6
+#     and 7 (every round's, as DAgger does);
 #   - fine-tune round 6 for 4000 steps of batch 32, bf16, peak lr 1e-4, seed 8006; step 4000 is the one
 #     evaluated;
 #   - candidates: round 6 (shipped) and round 7;
