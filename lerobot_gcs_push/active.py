@@ -2,9 +2,9 @@
 
 A round is four resumable steps:
 
-1. `gcs-push evaluate --policy POLICY --sampler hard ...` rolls the policy out and scores every executed
+1. `gcs-push evaluate --policies='[POLICY]' --sampler=hard ...` rolls the policy out and scores every executed
    chunk against the GCS cost-to-go (`regret_chunks` in `runs.jsonl`);
-2. `gcs-push collect --rollouts DIR ...` (this module) picks branch states along those rollouts (every
+2. `gcs-push collect --rollouts='[DIR]' ...` (this module) picks branch states along those rollouts (every
    chunk start of large regret, and a seeded fraction of the others) and runs the closed-loop GCS expert
    from each to the goal, recorded as a LeRobotDataset like any other (`dataset.generate`);
 3. LeRobot merges it with earlier data (`lerobot-edit-dataset --operation.type=merge`);

@@ -2,7 +2,7 @@
 
 A CPU-preset checkpoint is 63 MB in fp32; in 16-bit floats it is 32 MB, small enough to keep every
 headline policy in git, so that it survives a fresh machine and needs no unpack step:
-`lerobot-eval --policy.path=DIR` and `gcs-push evaluate --policy DIR` load it directly (PyTorch's
+`lerobot-eval --policy.path=DIR` and `gcs-push evaluate --policies='[DIR]'` load it directly (PyTorch's
 `load_state_dict` casts the stored tensors to the model's fp32 parameters).
 
 fp16 rather than bf16: the weights of this network all lie well inside fp16's range, where its 10-bit

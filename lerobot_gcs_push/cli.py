@@ -38,10 +38,9 @@ class PlanConfig:
     jsonl: bool = False
 
     def __post_init__(self) -> None:
-        from lerobot_gcs_push.planner import METHODS
+        from lerobot_gcs_push.planner import check_method
 
-        if self.method not in METHODS:
-            raise ValueError(f"unknown method {self.method!r}: choose one of {METHODS}")
+        check_method(self.method)
         if self.initial_conditions and (self.box or self.finger):
             raise ValueError("give either initial_conditions or box/finger, not both")
         if not self.initial_conditions and not (self.box and self.finger):
@@ -66,8 +65,24 @@ class DemoConfig:
     policy: str = "policies/diffusion_cpu"
     # Initial conditions for the policy beside GCS (one run each, one side-by-side video each).
     policy_ics: int = 3
+    # Torch device of the policy: cpu, cuda, cuda:N or mps.
+    device: str = "cpu"
     # Regenerate the dataset and redo both evaluations.
     overwrite: bool = False
+
+    def __post_init__(self) -> None:
+        # Checked before the demonstrations are written, not minutes later when the step that needs it runs.
+        from lerobot_gcs_push.evaluation import check_device, check_policy
+
+        if min(self.episodes, self.workers, self.num_initial_conditions, self.runs) < 1:
+            raise ValueError("episodes, workers, num_initial_conditions and runs must be >= 1")
+        if self.policy:
+            check_policy(self.policy)
+            if self.policy_ics < 1:
+                raise ValueError(
+                    f"policy_ics must be >= 1 (or skip the policy with --policy=''), got {self.policy_ics}"
+                )
+        check_device(self.device)
 
 
 def run_plan(cfg: PlanConfig) -> None:
@@ -171,6 +186,7 @@ def run_demo(cfg: DemoConfig) -> None:
             output_dir=str(policy_dir),
             workers=cfg.workers,
             timeout_s=60.0,
+            device=cfg.device,
             videos=cfg.policy_ics,
             overwrite=cfg.overwrite,
         )
@@ -210,7 +226,8 @@ def _usage() -> str:
 
 
 def _root_cause(err: BaseException) -> BaseException:
-    while err.__cause__ is not None or err.__context__ is not None:
+    # `raise ... from None` marks a message written for the user: stop there, not at its inner error.
+    while err.__cause__ is not None or (err.__context__ is not None and not err.__suppress_context__):
         err = err.__cause__ or err.__context__
     return err
 

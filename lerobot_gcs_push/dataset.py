@@ -107,10 +107,9 @@ class GenerateConfig:
         if self.expert not in EXPERTS:
             raise ValueError(f"unknown expert {self.expert!r}: choose one of {EXPERTS}")
         check_sampler(self.sampler)
-        from lerobot_gcs_push.planner import METHODS
+        from lerobot_gcs_push.planner import check_method
 
-        if self.method not in METHODS:
-            raise ValueError(f"unknown method {self.method!r}: choose one of {METHODS}")
+        check_method(self.method)
         if self.image_size < 1 or not self.max_sim_time_s > 0:
             raise ValueError("image_size must be >= 1 and max_sim_time_s positive")
         per_s = round(1 / Disturbances.tick_s)
@@ -124,6 +123,8 @@ class GenerateConfig:
             raise ValueError(f"frames must be >= 1, got {self.frames}")
         if self.shard_size < 1:
             raise ValueError(f"shard_size must be >= 1, got {self.shard_size}")
+        if self.push_to_hub:  # refused now, not after the whole generation
+            check_online()
         from lerobot_gcs_push.workers import check_backend
 
         check_backend(self.backend, self.ray_address)
@@ -207,7 +208,7 @@ def _run_shard(job: tuple[int, int, list[dict]]) -> dict:
     if good:
         writer = _Writer(cfg, staging)
         for meta in good:
-            writer.add(meta, work.load_arrays(meta["index"]))
+            writer.add(work.load_arrays(meta["index"]))
         writer.finish()
     else:
         staging.mkdir(parents=True)
@@ -292,8 +293,7 @@ class WorkDir:
                 )
             old = json.loads(self.settings_file().read_text()) if self.settings_file().exists() else None
             if old is not None and old != settings:
-                diff = {k: (old.get(k), v) for k, v in settings.items() if old.get(k) != v}
-                raise ValueError(f"--resume with different settings than the interrupted run: {diff}")
+                raise ValueError(f"--resume with different settings than the interrupted run: {_diff(old, settings)}")
         self.path.mkdir(parents=True, exist_ok=True)
         with atomic_path(self.settings_file()) as tmp:
             tmp.write_text(json.dumps(settings, indent=1))
@@ -520,8 +520,9 @@ def _finished(cfg: GenerateConfig, root: Path, settings: dict) -> GenerateReport
         raise FileExistsError(f"a dataset already exists at {root}, made before its settings were recorded: {hint}")
     held = json.loads(file.read_text())
     if held != wanted:
-        diff = {k: (held.get(k), v) for k, v in wanted.items() if held.get(k) != v}
-        raise FileExistsError(f"the finished dataset at {root} was made with other settings {diff}: {hint}")
+        raise FileExistsError(
+            f"the finished dataset at {root} was made with other settings {_diff(held, wanted)}: {hint}"
+        )
     metas = read_episode_metadata(root)
     return GenerateReport(
         str(root),
@@ -605,7 +606,6 @@ class _Writer:
     def __init__(self, cfg: GenerateConfig, root: Path):
         from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-        self.root = root
         self.ds = LeRobotDataset.create(
             repo_id=cfg.repo_id,
             fps=cfg.fps,
@@ -615,18 +615,20 @@ class _Writer:
             use_videos=False,
             video_backend="pyav",
         )
-        self.lines: list[str] = []
 
-    def add(self, meta: dict, arrays: dict[str, np.ndarray]) -> None:
+    def add(self, arrays: dict[str, np.ndarray]) -> None:
         for t in range(len(arrays["action"])):
             self.ds.add_frame({k: arrays[k][t] for k in FEATURE_KEYS} | {"task": TASK})
         with _batched_image_embedding():
             self.ds.save_episode()
-        self.lines.append(json.dumps({"episode_index": len(self.lines), **meta}))
 
     def finish(self) -> None:
         self.ds.finalize()
-        (self.root / EPISODES_META).write_text("\n".join(self.lines) + "\n")
+
+
+def _diff(held: dict, wanted: dict) -> dict:
+    """{setting: (held, wanted)} for the settings that differ, for error messages."""
+    return {k: (held.get(k), v) for k, v in wanted.items() if held.get(k) != v}
 
 
 def read_episode_metadata(root) -> list[dict]:
@@ -634,13 +636,18 @@ def read_episode_metadata(root) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
 
 
+def check_online() -> None:
+    # `gcs-push` sets HF_HUB_OFFLINE=1 unless the caller set it, so the way out is to set it to 0.
+    if os.environ.get("HF_HUB_OFFLINE", "0") not in ("0", "", "false", "False"):
+        raise ValueError(
+            "push_to_hub needs the network, but HF_HUB_OFFLINE is on: run with HF_HUB_OFFLINE=0, after "
+            "`huggingface-cli login`"
+        )
+
+
 def push_to_hub(repo_id: str, root: Path) -> None:
     """LeRobot's own upload; fails clearly without a network or a token."""
-    if os.environ.get("HF_HUB_OFFLINE", "0") not in ("0", "", "false", "False"):
-        raise RuntimeError(
-            "push_to_hub needs the network, but HF_HUB_OFFLINE is set; unset it and log in "
-            "with `huggingface-cli login` first"
-        )
+    check_online()
     from huggingface_hub import get_token
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 

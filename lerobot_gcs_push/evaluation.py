@@ -64,6 +64,23 @@ PAPER = {
 }
 
 
+def check_policy(policy: str) -> str:
+    from lerobot_gcs_push.checkpoints import is_pretrained_dir
+
+    if policy not in GCS_POLICIES and not is_pretrained_dir(policy):
+        raise ValueError(
+            f"unknown policy {policy!r}: use {' or '.join(GCS_POLICIES)}, or a LeRobot pretrained_model "
+            f"directory (config.json and model.safetensors)"
+        )
+    return policy
+
+
+def check_device(device: str) -> str:
+    if device not in ("cpu", "cuda", "mps") and not device.startswith("cuda:"):
+        raise ValueError(f"unknown device {device!r}: use cpu, cuda, cuda:N or mps")
+    return device
+
+
 @dataclass
 class EvaluateConfig:
     # gcs-open-loop, gcs-closed-loop, or LeRobot pretrained_model directories:
@@ -118,16 +135,18 @@ class EvaluateConfig:
         if not self.timeout_s > 0:
             raise ValueError(f"timeout_s must be positive, got {self.timeout_s}")
         for p in self.policies:
-            if p not in GCS_POLICIES and not (Path(p) / "config.json").is_file():
-                raise ValueError(
-                    f"unknown policy {p!r}: use {' or '.join(GCS_POLICIES)}, or a LeRobot "
-                    f"pretrained_model directory (with config.json)"
-                )
+            check_policy(p)
         check_sampler(self.sampler)
         if self.seed is None:
             self.seed = NAMED_SET_SEEDS[self.sampler]
-        if self.device not in ("cpu", "cuda", "mps") and not self.device.startswith("cuda:"):
-            raise ValueError(f"unknown device {self.device!r}")
+        check_device(self.device)
+        if self.dataset is not None:  # read for Fig. 4 only at the end: a typo must not cost the evaluation
+            from lerobot_gcs_push.dataset import lerobot_home
+
+            if not (Path(self.dataset).is_dir() or (lerobot_home() / self.dataset).is_dir()):
+                raise ValueError(
+                    f"dataset {self.dataset!r} is neither a folder nor in the LeRobot cache ({lerobot_home()})"
+                )
         from lerobot_gcs_push.workers import check_backend
 
         check_backend(self.backend, self.ray_address)

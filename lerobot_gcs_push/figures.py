@@ -142,7 +142,8 @@ def fig_regret(cfg, out: Path, records: list[dict]) -> Path | None:
     for ax, label in zip(axes[0], labels):
         for r in (r for r in records if r["label"] == label and r.get("regret_chunks")):
             ch = np.array(r["regret_chunks"], float)
-            t = np.r_[ch[:, 0], ch[-1, 0] + fps * 0.8] / fps
+            last = ch[-1, 0] - ch[-2, 0] if len(ch) > 1 else 1  # the chunk length the run was scored with
+            t = np.r_[ch[:, 0], ch[-1, 0] + last] / fps
             cum = np.r_[0.0, np.nancumsum(ch[:, 1])]
             ax.plot(t, cum, color="tab:green" if r["success"] else "tab:red", lw=0.8, alpha=0.6)
         ax.axhline(0, color="k", lw=0.5)

@@ -301,6 +301,8 @@ def load_initial_conditions(path) -> list[dict]:
             data = json.load(f)
     except FileNotFoundError:
         raise FileNotFoundError(f"initial-conditions file {str(path)!r} does not exist") from None
+    except OSError as err:  # a directory, no permission: the same one-line message, not a traceback
+        raise ValueError(f"cannot read initial-conditions file {str(path)!r}: {err.strerror}") from None
     except json.JSONDecodeError as err:
         raise ValueError(f"initial-conditions file {str(path)!r} is not valid JSON: {err}") from None
     if not isinstance(data, list):

@@ -150,10 +150,35 @@ def test_worker_count_and_interruption_do_not_change_the_dataset(tmp_path, refer
     assert res.returncode != 0 and "other settings" in res.stderr and "'seed'" in res.stderr
 
 
-def test_bad_settings_are_named(tmp_path):
+def test_bad_settings_are_named(tmp_path, monkeypatch):
     with pytest.raises(ValueError, match="unknown expert"):
         GenerateConfig(expert="human")
     with pytest.raises(ValueError, match="not both"):
         GenerateConfig(overwrite=True, resume=True)
     with pytest.raises(ValueError, match="owner/name"):
         GenerateConfig(repo_id="nodash")
+    monkeypatch.setenv("HF_HUB_OFFLINE", "1")
+    with pytest.raises(ValueError, match="HF_HUB_OFFLINE=0"):  # before any demonstration, not after all
+        GenerateConfig(push_to_hub=True)
+
+
+@pytest.mark.parametrize(
+    "content, needle",
+    [
+        ('[{"box": [1, 2]}]', "entry 0 must be"),
+        ("[1, 2]", "entry 0 must be"),
+        ("{", "not valid JSON"),
+        (None, "Is a directory"),
+    ],
+)
+def test_bad_initial_conditions_file_gets_its_own_message(tmp_path, content, needle):
+    """The CLI shows the message written for the user, not the KeyError or TypeError behind it."""
+    path = tmp_path / "ics.json"
+    path.mkdir() if content is None else path.write_text(content)
+    res = subprocess.run(
+        gcs_push("generate", f"--initial_conditions={path}", f"--root={tmp_path / 'ds'}"),
+        capture_output=True,
+        text=True,
+    )
+    assert res.returncode == 2 and needle in res.stderr and "Traceback" not in res.stderr
+    assert not (tmp_path / "ds").exists()

@@ -135,6 +135,8 @@ def test_killed_and_rerun_evaluation_gives_the_same_records(tmp_path, ics_file):
         (["--sampler=hardest"], "unknown sampler"),
         (["--runs=0"], "must be >= 1"),
         (["--runs=many"], "runs"),
+        (["--device=tpu"], "unknown device"),
+        (["--dataset=local/no_such_dataset"], "neither a folder nor in the LeRobot cache"),
     ],
 )
 def test_bad_input_fails_before_any_rollout(tmp_path, args, needle):

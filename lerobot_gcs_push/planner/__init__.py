@@ -13,7 +13,7 @@ relaxation or MICP), `rounding` and `restriction` (from flows to a path, and the
 from lerobot_gcs_push.planner.gcs import SolverError
 from lerobot_gcs_push.planner.graph import build_graph
 from lerobot_gcs_push.planner.plan import Plan, Schedule, SegmentKind, Speeds
-from lerobot_gcs_push.planner.planner import METHODS, GcsPlanner, Query
+from lerobot_gcs_push.planner.planner import METHODS, GcsPlanner, Query, check_method
 from lerobot_gcs_push.planner.restriction import brute_force
 
 __all__ = [
@@ -27,4 +27,5 @@ __all__ = [
     "Speeds",
     "brute_force",
     "build_graph",
+    "check_method",
 ]

@@ -17,9 +17,10 @@ from lerobot_gcs_push.scene import Scene
 METHODS = ("relaxation", "micp")
 
 
-def _check_method(method: str) -> None:
+def check_method(method: str) -> str:
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}: choose one of {METHODS}")
+    return method
 
 
 @dataclass(frozen=True)
@@ -49,7 +50,7 @@ class GcsPlanner:
         goal_tolerance: float = 1e-6,
         compile_now: bool = True,
     ):
-        _check_method(method)
+        check_method(method)
         self.scene = scene or Scene()
         self.method = method
         self.graph: ModeGraph = build_graph(self.scene, structure, num_pushes)
@@ -64,7 +65,7 @@ class GcsPlanner:
 
     def program(self, method: str) -> GcsProgram:
         """The compiled program for `method` (compiled on first use; the time is kept)."""
-        _check_method(method)
+        check_method(method)
         if method not in self._programs:
             t0 = time.perf_counter()
             micp = method == "micp"
