@@ -59,7 +59,7 @@ def main(argv=None) -> int:
             res = mod.run(episodes=6, shard_size=2, copies=2) if args.quick else mod.run(episodes=100)
         else:
             raise SystemExit(f"unknown benchmark {name!r}")
-        results[name] = res
+        results[name] = res | {"_measured": _measured(args)}  # a partial run must not re-date the others
         print(f"\n== {name} ({time.perf_counter() - t0:.0f} s)")
         for k, v in res.items():
             target = TARGETS.get(f"{name}.{k}")
@@ -70,20 +70,22 @@ def main(argv=None) -> int:
                 mark = f"   target {op} {bound:g}: {'met' if ok else 'MISSED'}"
             print(f"  {k:45s} {v:12.4g}{mark}" if isinstance(v, (int, float)) else f"  {k:45s} {v}")
         sys.stdout.flush()
-    meta = {
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    old = json.loads(Path(args.out).read_text()) if Path(args.out).exists() else {}
+    old.update(results)
+    Path(args.out).write_text(json.dumps(old, indent=1))
+    print(f"\nsaved to {args.out} (load average at the end: {os.getloadavg()[0]:.1f})")
+    return 0
+
+
+def _measured(args) -> dict:
+    return {
         "machine": platform.platform(),
         "cpus": os.cpu_count(),
         "load_avg_1m": os.getloadavg()[0],
         "time": time.strftime("%Y-%m-%d %H:%M:%S"),
         "quick": args.quick,
     }
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    old = json.loads(Path(args.out).read_text()) if Path(args.out).exists() else {}
-    old.update(results)
-    old["_meta"] = meta
-    Path(args.out).write_text(json.dumps(old, indent=1))
-    print(f"\nsaved to {args.out} (load average at the end: {meta['load_avg_1m']:.1f})")
-    return 0
 
 
 if __name__ == "__main__":

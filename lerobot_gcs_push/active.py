@@ -149,8 +149,16 @@ def collect(cfg: CollectConfig) -> tuple[GenerateReport, list[dict]]:
     root = dataset_root(gen)
     # The list sits beside the dataset (kept for provenance), written whole before generation reads it.
     states_path = root.with_name(root.name + ".branch_states.json")
-    if not (cfg.resume and states_path.exists()):
+    text = json.dumps(states)
+    if cfg.resume and states_path.exists():
+        if states_path.read_text() != text:  # the states are the run's settings: other ones would mix lists
+            raise ValueError(
+                f"{states_path} holds the branch states of a collect with other rollouts or settings; "
+                "--resume needs the same ones (or pass --overwrite=true, or choose another --repo_id)"
+            )
+    elif cfg.overwrite or not (root.exists() or root.with_name(root.name + ".work").exists()):
         with atomic_path(states_path) as tmp:
-            tmp.write_text(json.dumps(states))
+            tmp.write_text(text)
+    # else generate() refuses the existing dataset or interrupted run, and their list stays as it was.
     gen.initial_conditions = str(states_path)
     return generate(gen), states

@@ -65,7 +65,8 @@ def export_policy(src, dst, dtype: str = "float16", overwrite: bool = False) -> 
         # a `use_amp` policy to bf16 on CPU. Fine-tuning turns it back on with --policy.use_amp=true.
         config["use_amp"] = False
         (staging / CONFIG_FILE).write_text(json.dumps(config, indent=4) + "\n")
-        # The old directory steps aside before the new one moves in: at no moment is there no policy.
+        # The old directory steps aside before the new one moves in: a kill between the two moves leaves
+        # the old policy whole at .<name>.old, never a half-written one at <name>.
         old = dst.with_name("." + dst.name + ".old")
         if dst.exists():
             shutil.rmtree(old, ignore_errors=True)

@@ -47,8 +47,9 @@ FEATURE_KEYS = ("observation.image", "observation.state", "observation.environme
 
 @dataclass
 class GenerateConfig:
-    # Successful demonstrations to write (failed rollouts are left out).
-    episodes: int = 100
+    # Successful demonstrations to write (failed rollouts are left out). Default: 100 from the sampler,
+    # or as many as --initial_conditions has entries.
+    episodes: int | None = None
     # LeRobot dataset id, "owner/name".
     repo_id: str = "local/gcs_push_box"
     # Dataset folder; default: $HF_LEROBOT_HOME/<repo_id>, where LeRobot looks first.
@@ -64,7 +65,8 @@ class GenerateConfig:
     # Initial conditions: sobol (space-filling), uniform (the paper's) or hard (see scene.py).
     sampler: str = "sobol"
     # A JSON list of {"box", "finger"} to use instead of the sampler (e.g. the policy states that
-    # `gcs-push collect` picked); then every entry is tried once, and failures are left out.
+    # `gcs-push collect` picked); its entries are tried once each, in order, until `episodes` succeed,
+    # and failures are left out.
     initial_conditions: str | None = None
     # Stop once this many frames are written (an equal-cost control); episodes is then an upper bound.
     frames: int | None = None
@@ -94,6 +96,9 @@ class GenerateConfig:
     shard_size: int = 10
 
     def __post_init__(self) -> None:
+        ics = load_initial_conditions(self.initial_conditions) if self.initial_conditions else None
+        if self.episodes is None:
+            self.episodes = len(ics) if ics else 100
         if self.episodes < 1:
             raise ValueError(f"episodes must be >= 1, got {self.episodes}")
         if self.workers < 1:
@@ -115,9 +120,9 @@ class GenerateConfig:
         per_s = round(1 / Disturbances.tick_s)
         if self.fps <= 0 or per_s % self.fps:  # an env step is a whole number of disturbance ticks
             raise ValueError(f"fps must divide {per_s}, got {self.fps}")
-        if self.initial_conditions:  # refused before any worker starts, each entry named
+        if ics:  # refused before any worker starts, each entry named
             scene = Scene()
-            for i, ic in enumerate(load_initial_conditions(self.initial_conditions)):
+            for i, ic in enumerate(ics):
                 scene.validate_state(ic["box"], ic["finger"], what=f"initial condition {i}")
         if self.frames is not None and self.frames < 1:
             raise ValueError(f"frames must be >= 1, got {self.frames}")
@@ -342,6 +347,10 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
     work = WorkDir(root.with_name(root.name + ".work"))
     shards = root.with_name(root.name + ".shards")
     if cfg.overwrite:
+        if root.exists() and not (root / "meta" / "info.json").is_file() and any(root.iterdir()):
+            raise FileExistsError(
+                f"--overwrite replaces a LeRobotDataset, and {root} is not one: choose another --root"
+            )
         for path in (root, work.path, shards):
             shutil.rmtree(path, ignore_errors=True)
     # Where and how the jobs run may change on --resume; what they compute may not.
@@ -640,8 +649,7 @@ def check_online() -> None:
     # `gcs-push` sets HF_HUB_OFFLINE=1 unless the caller set it, so the way out is to set it to 0.
     if os.environ.get("HF_HUB_OFFLINE", "0") not in ("0", "", "false", "False"):
         raise ValueError(
-            "push_to_hub needs the network, but HF_HUB_OFFLINE is on: run with HF_HUB_OFFLINE=0, after "
-            "`huggingface-cli login`"
+            "push_to_hub needs the network, but HF_HUB_OFFLINE is on: run with HF_HUB_OFFLINE=0, after `hf auth login`"
         )
 
 
@@ -652,5 +660,5 @@ def push_to_hub(repo_id: str, root: Path) -> None:
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     if not get_token():
-        raise RuntimeError("push_to_hub needs a Hugging Face token: run `huggingface-cli login` or set HF_TOKEN")
+        raise RuntimeError("push_to_hub needs a Hugging Face token: run `hf auth login` or set HF_TOKEN")
     LeRobotDataset(repo_id, root=root).push_to_hub()

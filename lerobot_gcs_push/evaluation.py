@@ -225,6 +225,7 @@ class _Runner:
         large = [c for c in chunks if c["regret"] > self.cfg.large_regret_m]
         fps = self.envs[False].fps
         return {
+            # Over the scored chunks; an unscored one stays NaN in regret_chunks and the summary counts it.
             "regret": float(np.nansum(regrets)),
             "value_initial": chunks[0]["v_before"] if chunks else 0.0,
             "first_large_regret_s": large[0]["step"] / fps if large else None,
@@ -390,15 +391,23 @@ def evaluate(cfg: EvaluateConfig) -> dict:
         "runs": cfg.runs,
         "timeout_s": cfg.timeout_s,
         "success_thresholds": list(cfg.success_thresholds),
+        "regret": cfg.regret,
+        "large_regret_m": cfg.large_regret_m,
     }
     runs_path = out / "runs.jsonl"
     if cfg.overwrite and out.exists():
         import shutil
 
+        if not ((out / "runs.jsonl").is_file() or (out / "settings.json").is_file()) and any(out.iterdir()):
+            raise FileExistsError(
+                f"--overwrite replaces an evaluation, and {out} holds none (no runs.jsonl): choose another --output_dir"
+            )
         shutil.rmtree(out)
     out.mkdir(parents=True, exist_ok=True)
     settings_path = out / "settings.json"
-    if settings_path.exists() and json.loads(settings_path.read_text()) != settings:
+    # Folders written before regret settings were recorded hold the defaults.
+    defaults = {"regret": EvaluateConfig.regret, "large_regret_m": EvaluateConfig.large_regret_m}
+    if settings_path.exists() and defaults | json.loads(settings_path.read_text()) != settings:
         raise FileExistsError(
             f"{out} holds an evaluation with other initial conditions or settings; "
             f"pass --overwrite=true or choose another --output_dir"
@@ -514,6 +523,7 @@ def _regret_summary(recs: list[dict], large: float) -> dict:
     if not recs:
         return {}
     chunks = np.array([c[1] for r in recs for c in r["regret_chunks"]], float)
+    unscored = int(np.isnan(chunks).sum())
     chunks = chunks[np.isfinite(chunks)]
     firsts = [r["first_large_regret_s"] for r in recs if r["first_large_regret_s"] is not None]
     return {
@@ -523,6 +533,8 @@ def _regret_summary(recs: list[dict], large: float) -> dict:
         "runs_with_large_regret": _mean(r["first_large_regret_s"] is not None for r in recs),
         "first_large_regret_s_median": float(np.median(firsts)) if firsts else None,
         "large_regret_m": large,
+        # Chunks whose cost-to-go the planner could not compute: left out of the sums above, so named.
+        "unscored_chunks": unscored,
     }
 
 
@@ -592,6 +604,12 @@ def _tables_md(cfg: EvaluateConfig, pv: dict, ics: list[dict]) -> str:
                     f"{_fmt(v['chunk_regret_p95'])} | {_fmt(v['runs_with_large_regret'])} | "
                     f"{_fmt(v['first_large_regret_s_median'], 1)} |"
                 )
+        unscored = {label: v["unscored_chunks"] for label, v in pv.items() if v.get("unscored_chunks")}
+        if unscored:
+            lines.append(
+                "\nChunks the planner could not score (left out of the sums above): "
+                + ", ".join(f"{label} {n}" for label, n in unscored.items())
+            )
     lines.append(
         "\nRun time: wall time of the rollout, policy inference and closed-loop replanning included; plan "
         "time: the GCS plan made before execution (paper IV-B). Simulation time is simulated seconds."

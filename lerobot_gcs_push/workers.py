@@ -49,18 +49,11 @@ class Pool:
         self._start(ticket, fn, job)
         return ticket
 
-    def map(self, fn: Callable, jobs: Iterable, ordered: bool = False) -> Iterator:
-        """Submits every job, then yields the results as they finish or, if `ordered`, in the jobs' order."""
+    def map(self, fn: Callable, jobs: Iterable) -> Iterator:
+        """Submits every job, then yields the results as they finish."""
         tickets = [self.submit(fn, job) for job in jobs]
-        early: dict[int, Any] = {}
-        for ticket in tickets:
-            if not ordered:
-                yield self.next()[1]
-                continue
-            while ticket not in early:
-                done, result = self.next()
-                early[done] = result
-            yield early.pop(ticket)
+        for _ in tickets:
+            yield self.next()[1]
 
     def next(self) -> tuple[int, Any]:
         """(ticket, result) of a finished job; a job's own exception is raised here."""

@@ -134,6 +134,12 @@ def test_collect_records_the_expert_from_the_policy_states(tmp_path):
     # A script re-running every step: collecting again with --resume=true finds the work done.
     again, _ = collect(dataclasses.replace(cfg, resume=True))
     assert again.already_finished and (again.episodes, again.frames) == (report.episodes, report.frames)
+    # Other settings pick other states: refused on --resume and without it, the kept list untouched.
+    with pytest.raises(ValueError, match="other rollouts or settings"):
+        collect(dataclasses.replace(cfg, resume=True, keep_fraction=1.0))
+    with pytest.raises(FileExistsError, match="already exists"):
+        collect(dataclasses.replace(cfg, keep_fraction=1.0))
+    assert json.loads((tmp_path / "ds.branch_states.json").read_text()) == states
 
 
 def test_the_optimal_plan_has_no_regret_along_its_own_path(tmp_path):

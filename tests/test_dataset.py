@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import subprocess
 from pathlib import Path
@@ -160,6 +161,19 @@ def test_bad_settings_are_named(tmp_path, monkeypatch):
     monkeypatch.setenv("HF_HUB_OFFLINE", "1")
     with pytest.raises(ValueError, match="HF_HUB_OFFLINE=0"):  # before any demonstration, not after all
         GenerateConfig(push_to_hub=True)
+    # --episodes defaults to one try of every listed initial condition, else 100.
+    ics = tmp_path / "ics.json"
+    ics.write_text(json.dumps([{"box": [2.0, 1.0], "finger": [-2.0, 0.5]}] * 3))
+    assert GenerateConfig().episodes == 100
+    assert GenerateConfig(initial_conditions=str(ics)).episodes == 3
+    assert GenerateConfig(initial_conditions=str(ics), episodes=2).episodes == 2
+    # --overwrite deletes a dataset, never a folder that is not one.
+    notes = tmp_path / "notes"
+    notes.mkdir()
+    (notes / "thesis.tex").write_text("x")
+    with pytest.raises(FileExistsError, match="is not one"):
+        generate(GenerateConfig(root=str(notes), overwrite=True, workers=1, progress=False))
+    assert (notes / "thesis.tex").read_text() == "x"
 
 
 @pytest.mark.parametrize(

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from conftest import gcs_push, kill_when
 
-from lerobot_gcs_push.evaluation import TIMING_FIELDS, EvaluateConfig, evaluate, read_runs
+from lerobot_gcs_push.evaluation import TIMING_FIELDS, EvaluateConfig, _regret_summary, evaluate, read_runs
 
 REQUIRED = (
     "policy",
@@ -164,3 +164,23 @@ def test_malformed_initial_conditions_are_named(tmp_path):
     overlap.write_text(json.dumps([{"box": [0, 0], "finger": [0.5, 0]}]))
     with pytest.raises(ValueError, match="overlaps"):
         evaluate(EvaluateConfig(initial_conditions=str(overlap), output_dir=str(tmp_path / "o2")))
+
+
+def test_overwrite_deletes_an_evaluation_never_another_folder(tmp_path):
+    notes = tmp_path / "notes"
+    notes.mkdir()
+    (notes / "thesis.tex").write_text("x")
+    with pytest.raises(FileExistsError, match="holds none"):
+        evaluate(EvaluateConfig(num_initial_conditions=1, runs=1, output_dir=str(notes), overwrite=True))
+    assert (notes / "thesis.tex").read_text() == "x"
+
+
+def test_a_chunk_the_planner_cannot_score_is_counted_not_hidden():
+    """Two runs by hand: regret 1.5 and 0.5 m (one chunk of the second unscored, NaN)."""
+    recs = [
+        {"regret": 1.5, "first_large_regret_s": 0.8, "regret_chunks": [[0, 1.0], [8, 0.5]]},
+        {"regret": 0.5, "first_large_regret_s": None, "regret_chunks": [[0, 0.5], [8, float("nan")]]},
+    ]
+    s = _regret_summary(recs, 0.75)
+    assert s["unscored_chunks"] == 1 and s["regret_mean"] == 1.0 and s["runs_with_large_regret"] == 0.5
+    assert s["chunk_regret_p95"] == pytest.approx(np.percentile([1.0, 0.5, 0.5], 95))

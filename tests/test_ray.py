@@ -205,11 +205,11 @@ def test_evaluation_records_match_the_process_pool(tmp_path, cluster):
 
 
 def test_pools_return_every_result_and_report_a_worker_that_keeps_dying(cluster):
-    """Both backends: results in the jobs' order on request; a job calling os._exit is retried by Ray, then
+    """Both backends: every result once; a job calling os._exit is retried by Ray, then
     given up, while the process pool gives up at once: an error naming what to do, never a hang."""
     for backend in ("process", "ray"):
         with open_pool(backend, 2, int, ()) as pool:
-            assert list(pool.map(abs, range(0, -6, -1), ordered=True)) == [0, 1, 2, 3, 4, 5]
+            assert sorted(pool.map(abs, range(0, -6, -1))) == [0, 1, 2, 3, 4, 5]
             assert sorted(pool.map(abs, [-7, 8])) == [7, 8]
         with open_pool(backend, 2, int, (), hint="HINT") as pool, pytest.raises(RuntimeError, match="(?s)died.*HINT"):
             list(pool.map(os._exit, [1]))
