@@ -13,6 +13,10 @@
 #     initial conditions x 3 runs, no disturbances, 60 s, the candidate with the higher success at 0.1 m
 #     over the 240 runs ships; a tie keeps B. Step 6 applies it; a new policy then runs the test sets
 #     (seeds 1000, 2000, 3000, with and without disturbances) and ships whatever they give.
+# One change, at 07:06, after round 8's validation tied at 240 of 240 each (round 7 kept) and before any
+# round-9 step had output (its rollouts had run 30 s; they were restarted): on equal success the candidate
+# with the lower mean simulation time of its successful runs ships (the issue's time target), since these
+# validation sets no longer separate the policies by success.
 set -euo pipefail
 export HF_HUB_OFFLINE=1
 C=~/.cache/huggingface/lerobot/local
@@ -87,7 +91,7 @@ done
 
 # 6. The rule, then the test sets for a new policy, beside GCS and B, whose rows are copied from B's
 #    test-set folders (a record does not depend on when it ran).
-winner=$(.venv/bin/python experiments/scripts/validation_winner.py $B $R9 \
+winner=$(.venv/bin/python experiments/scripts/validation_winner.py --tie_break=time $B $R9 \
     results/selection_hard_seed5012 results/selection_uniform_seed5013)
 echo "by the rule: $winner"
 [ "$winner" = "$R9" ] || exit 0
