@@ -6,7 +6,9 @@ initializer and the same functions: the work is identical, only where it runs di
 
 - `process`: a concurrent.futures pool of forkserver processes. multiprocessing.Pool would silently replace
   a worker that dies (a crash in the renderer, the OOM killer) and wait forever for its job; this one reports
-  the death, and we raise a RuntimeError. One worker runs the jobs in this process, without a pool.
+  the death, and we raise a RuntimeError. The other way round, a worker leaves when the driver is killed
+  alone (`kill`, `timeout`): nothing would close its queue, and it would wait forever holding its memory.
+  One worker runs the jobs in this process, without a pool.
 - `ray`: one actor per worker (one CPU each) on the cluster at `address` (`auto` or `HOST:PORT`), or on a Ray
   started here when there is no address. Ray restarts an actor whose process dies and runs its job again, up
   to RETRIES times, so jobs must be idempotent (ours publish their results by atomic rename).
@@ -17,6 +19,9 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import multiprocessing as mp
+import os
+import threading
+import time
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -87,7 +92,10 @@ class ProcessPool(Pool):
         super().__init__()
         self._hint = hint
         self._executor = ProcessPoolExecutor(
-            workers, mp_context=mp.get_context("forkserver"), initializer=initializer, initargs=initargs
+            workers,
+            mp_context=mp.get_context("forkserver"),
+            initializer=_leave_with_driver,
+            initargs=(os.getpid(), initializer, initargs),
         )
         self._futures: dict = {}  # future -> ticket
 
@@ -106,6 +114,22 @@ class ProcessPool(Pool):
     def close(self):
         # Jobs already running finish (a dead pool has none); queued ones never start.
         self._executor.shutdown(wait=True, cancel_futures=True)
+
+
+def _leave_with_driver(driver: int, initializer: Callable, initargs: tuple) -> None:
+    """A process worker's initializer: the job's own, and a thread that ends the worker once the driver is
+    gone. Polled, since a forkserver worker's parent is the fork server, not the driver."""
+
+    def watch() -> None:
+        while True:
+            time.sleep(1.0)
+            try:
+                os.kill(driver, 0)
+            except (ProcessLookupError, PermissionError):  # gone, or its pid reused by another user
+                os._exit(1)
+
+    threading.Thread(target=watch, daemon=True, name="leave-with-driver").start()
+    initializer(*initargs)
 
 
 class RayWorker:

@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -184,3 +188,41 @@ def test_a_chunk_the_planner_cannot_score_is_counted_not_hidden():
     s = _regret_summary(recs, 0.75)
     assert s["unscored_chunks"] == 1 and s["regret_mean"] == 1.0 and s["runs_with_large_regret"] == 0.5
     assert s["chunk_regret_p95"] == pytest.approx(np.percentile([1.0, 0.5, 0.5], 95))
+
+
+def _marked(mark: str) -> set[int]:
+    """Pids of the processes whose environment holds `mark` (inherited by every child)."""
+    pids = set()
+    for environ in Path("/proc").glob("[0-9]*/environ"):
+        try:
+            if mark.encode() in environ.read_bytes():
+                pids.add(int(environ.parent.name))
+        except OSError:  # ended while we looked, or not ours
+            continue
+    return pids
+
+
+def test_worker_processes_leave_when_the_driver_alone_is_killed(tmp_path):
+    """`kill PID` or `timeout` signal the driver only; its workers must not wait forever for jobs."""
+    mark = f"GCS_PUSH_TEST_{os.getpid()}_{time.monotonic_ns()}"
+    cmd = gcs_push(
+        "evaluate", "--policies=[gcs-open-loop]", "--num_initial_conditions=40", "--runs=1", "--workers=2",
+        "--videos=0", "--regret=false", f"--output_dir={tmp_path / 'o'}",
+    )  # fmt: skip
+    driver = subprocess.Popen(
+        cmd, env=os.environ | {"GCS_PUSH_TEST_MARK": mark}, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    runs = tmp_path / "o" / "runs.jsonl"
+    deadline = time.time() + 180
+    while not (runs.exists() and runs.read_text().strip()) and driver.poll() is None and time.time() < deadline:
+        time.sleep(0.2)  # a finished run: the workers are up and busy
+    children = _marked(mark) - {driver.pid}
+    assert driver.poll() is None and len(children) >= 2, "the evaluation ended before it could be killed"
+    driver.terminate()
+    driver.wait()
+    deadline = time.time() + 20
+    while (left := _marked(mark)) and time.time() < deadline:
+        time.sleep(0.2)
+    for pid in left:  # a failing run must not leave them behind either
+        os.kill(pid, signal.SIGKILL)
+    assert not left, f"{len(left)} of the driver's processes outlived it"
