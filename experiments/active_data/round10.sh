@@ -5,19 +5,19 @@
 # success time on the hard sets (round 9: 1.24x and 1.26x GCS's):
 #   - base B: round 9 (shipped);
 #   - rollouts of B, 1 run each, with and without disturbances, on 120 hard initial conditions (seed 4080,
-#     30 of each family) and 40 uniform ones (seed 4081): round 9's mix (changed at 10:35, below);
+#     30 of each family) and 40 uniform ones (seed 4081): round 9's mix (changed at 10:30, below);
 #   - collect with one change from the defaults, --large_regret_m=0.25: a successful run's detours of
 #     0.25-0.5 m a chunk are where its extra time goes (round 9's successes lose 2 m per run on the hard
 #     set), so they are branched from as a failed run's are;
 #   - training data: the base demonstrations plus every round's states (rounds 1, 2, 4-10);
 #   - fine-tune B for 4000 steps of batch 32, bf16, peak lr 1e-4, seed 8010; step 4000 is the one evaluated
-#     (changed at 10:35, below);
+#     (changed at 10:30, below);
 #   - rule: on a seventh validation set no one has looked at, 40 hard (seed 5015) and 40 uniform (seed 5016)
 #     initial conditions x 3 runs, no disturbances, 60 s, the candidate with the higher success at 0.1 m
 #     over the 240 runs ships; on equal success the lower mean simulation time of the successful runs
 #     (validation_winner.py --tie_break=time); a full tie keeps B. Step 6 applies it; a new policy then
 #     runs the test sets (seeds 1000, 2000, 3000, with and without disturbances) and ships whatever they give.
-# One change, at 10:35, while step 0 rebuilt the earlier data and before any round-10 step had output: this
+# One change, at 10:30, while step 0 rebuilt the earlier data and before any round-10 step had output: this
 # machine runs about 1.7x slower than session 16's (the base data took 12 min against 7), so that the
 # fine-tuned weights are written and committed within the session, the rollouts use 80 hard (20 of each
 # family) and 20 uniform initial conditions (same seeds) and fine-tuning runs 3000 steps; step 3000 is
