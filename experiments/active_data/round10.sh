@@ -23,7 +23,9 @@
 # family) and 20 uniform initial conditions (same seeds) and fine-tuning runs 3000 steps; step 3000 is
 # the one evaluated. A second, at 11:35, while step 3 merged and before fine-tuning began: the merge
 # (984,072 frames) takes about 20 min here, so 3000 steps would end after the session; fine-tuning runs
-# 2000 steps (rounds 1-4's length) and step 2000 is the one evaluated.
+# 2000 steps (rounds 1-4's length) and step 2000 is the one evaluated. A third, at 11:48, 90 steps into
+# that run, whose speed (1.03 steps/s) put its end 3 min before the session's: restarted for 1500 steps,
+# step 1500 the one evaluated (run by hand as this step 4 reads; the chain was stopped after its merge).
 set -euo pipefail
 export HF_HUB_OFFLINE=1
 C=~/.cache/huggingface/lerobot/local
@@ -36,7 +38,7 @@ commit() {  # commit PATH MESSAGE, waiting for another git process to let go of 
 
 B=$E/round9/active_step4000
 BASE_RESULTS=active_round9
-R10=$E/round10/active_step2000
+R10=$E/round10/active_step1500
 mkdir -p $E/round10
 
 # 0. The data earlier rounds trained on, rebuilt from what git keeps.
@@ -75,10 +77,10 @@ fi
 if [ ! -f $R10/model.safetensors ]; then
     OMP_NUM_THREADS=2 .venv/bin/lerobot-train --config_path=configs/policy/diffusion_cpu.json \
         --policy.path=$B --dataset.repo_id=local/gcs_push_r10_merged \
-        --output_dir=outputs/train/r10_active --job_name=r10_active --steps=2000 --save_freq=1000 \
+        --output_dir=outputs/train/r10_active --job_name=r10_active --steps=1500 --save_freq=500 \
         --policy.use_amp=true --policy.optimizer_lr=1e-4 --seed=8010 --num_workers=1
-    .venv/bin/python -c "from lerobot_gcs_push.checkpoints import export_policy; export_policy('outputs/train/r10_active/checkpoints/002000/pretrained_model', '$R10')"
-    commit $E/round10 "Round 10 active arm: step 2000 weights (fp16), fine-tuned from round 9; not yet evaluated"
+    .venv/bin/python -c "from lerobot_gcs_push.checkpoints import export_policy; export_policy('outputs/train/r10_active/checkpoints/001500/pretrained_model', '$R10')"
+    commit $E/round10 "Round 10 active arm: step 1500 weights (fp16), fine-tuned from round 9; not yet evaluated"
 fi
 
 # 5. The seventh validation set.
