@@ -41,6 +41,10 @@ BASE_RESULTS=active_round9
 R10=$E/round10/active_step1500
 mkdir -p $E/round10
 
+# Steps 0-4 make the weights; once they are committed, the script goes straight to step 5 (on a fresh
+# machine the data would otherwise be rebuilt for nothing).
+if [ ! -f $R10/model.safetensors ]; then
+
 # 0. The data earlier rounds trained on, rebuilt from what git keeps.
 [ -f $C/gcs_push_box_1000/meta/info.json ] || \
     .venv/bin/gcs-push generate --episodes=1000 --repo_id=local/gcs_push_box_1000 --workers=2 --resume=true
@@ -82,6 +86,8 @@ if [ ! -f $R10/model.safetensors ]; then
     .venv/bin/python -c "from lerobot_gcs_push.checkpoints import export_policy; export_policy('outputs/train/r10_active/checkpoints/001500/pretrained_model', '$R10')"
     commit $E/round10 "Round 10 active arm: step 1500 weights (fp16), fine-tuned from round 9; not yet evaluated"
 fi
+
+fi  # steps 0-4
 
 # 5. The seventh validation set.
 for v in "hard 5015" "uniform 5016"; do
