@@ -12,7 +12,7 @@ lower.
 import json
 import sys
 
-opts = {a.split("=")[0]: a.split("=")[1] for a in sys.argv[1:] if a.startswith("--")}
+opts = dict(a.partition("=")[::2] for a in sys.argv[1:] if a.startswith("--"))
 old, new, *dirs = [a for a in sys.argv[1:] if not a.startswith("--")]
 margin = int(opts.get("--margin", 1))
 wins = {old: 0, new: 0}
