@@ -12,7 +12,7 @@ import json
 import os
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from lerobot_gcs_push.active import CollectConfig
 from lerobot_gcs_push.dataset import GenerateConfig
@@ -148,7 +148,7 @@ def run_demo(cfg: DemoConfig) -> None:
     from pathlib import Path
 
     from lerobot_gcs_push.dataset import dataset_root
-    from lerobot_gcs_push.evaluation import evaluate, variant_label, video_path
+    from lerobot_gcs_push.evaluation import changed_weights, evaluate, variant_label, video_path
     from lerobot_gcs_push.videos import side_by_side
 
     gen = GenerateConfig(
@@ -190,6 +190,9 @@ def run_demo(cfg: DemoConfig) -> None:
             videos=cfg.policy_ics,
             overwrite=cfg.overwrite,
         )
+        if not cfg.overwrite and changed_weights(ev):
+            print(f"{cfg.policy} changed since the last demo: its runs in {policy_dir} are made again")
+            ev = replace(ev, overwrite=True)
         print(evaluate(ev)["tables_md"])
         labels = [variant_label(p, False) for p in ev.policies]
         for i in range(cfg.policy_ics):

@@ -11,6 +11,7 @@ an interrupted evaluation keeps its finished runs and continues where it stopped
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from dataclasses import asdict, dataclass, field
@@ -106,7 +107,8 @@ class EvaluateConfig:
     runs: int = 5
     # Also run every closed-loop or learned policy under the paper's random pushes.
     disturbances: bool = False
-    # Where runs.jsonl, tables.md, summary.json, figures and videos go; a re-run continues there.
+    # Where runs.jsonl, tables.md, summary.json, figures and videos go; a re-run continues there, unless
+    # a learned policy's weights changed since (then it stops and asks for --overwrite).
     output_dir: str = "outputs/eval"
     # Torch device of learned policies: cpu, cuda, cuda:N or mps.
     device: str = "cpu"
@@ -150,6 +152,26 @@ class EvaluateConfig:
         from lerobot_gcs_push.workers import check_backend
 
         check_backend(self.backend, self.ray_address)
+
+
+def weights_fingerprint(policy: str) -> str:
+    """The first 16 hex digits of the sha256 of a learned policy's model.safetensors."""
+    h = hashlib.sha256()
+    with open(Path(policy) / "model.safetensors", "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()[:16]
+
+
+def changed_weights(cfg: EvaluateConfig) -> list[str]:
+    """Learned policies of cfg whose weights differ from those that made the runs already in output_dir.
+
+    A policy is named by its folder, and retraining into the same folder is common: without this check a
+    re-run would resume and mix the old weights' runs with the new ones' under one label.
+    """
+    path = Path(cfg.output_dir) / "settings.json"
+    stored = json.loads(path.read_text()).get("policy_weights", {}) if path.is_file() else {}
+    return [p for p in cfg.policies if p in stored and stored[p] != weights_fingerprint(p)]
 
 
 def variants(cfg: EvaluateConfig) -> list[tuple[str, bool]]:
@@ -407,13 +429,23 @@ def evaluate(cfg: EvaluateConfig) -> dict:
     settings_path = out / "settings.json"
     # Folders written before regret settings were recorded hold the defaults.
     defaults = {"regret": EvaluateConfig.regret, "large_regret_m": EvaluateConfig.large_regret_m}
-    if settings_path.exists() and defaults | json.loads(settings_path.read_text()) != settings:
+    stored = json.loads(settings_path.read_text()) if settings_path.exists() else None
+    # Folders written before weights were recorded hold none: their runs are taken as they are.
+    weights = stored.pop("policy_weights", {}) if stored else {}
+    if stored is not None and defaults | stored != settings:
         raise FileExistsError(
             f"{out} holds an evaluation with other initial conditions or settings; "
             f"pass --overwrite=true or choose another --output_dir"
         )
+    changed = changed_weights(cfg)
+    if changed:
+        raise FileExistsError(
+            f"{out} holds runs of {', '.join(changed)} made with other weights (model.safetensors changed "
+            f"since); pass --overwrite=true or choose another --output_dir"
+        )
+    weights |= {p: weights_fingerprint(p) for p in cfg.policies if p not in GCS_POLICIES}
     with atomic_path(settings_path) as tmp:
-        tmp.write_text(json.dumps(settings, indent=1))
+        tmp.write_text(json.dumps(settings | {"policy_weights": weights}, indent=1))
 
     records = read_runs(runs_path)
     # Rewrite without any torn last line, so that appends start on a fresh line.

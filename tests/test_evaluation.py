@@ -226,3 +226,37 @@ def test_worker_processes_leave_when_the_driver_alone_is_killed(tmp_path):
     for pid in left:  # a failing run must not leave them behind either
         os.kill(pid, signal.SIGKILL)
     assert not left, f"{len(left)} of the driver's processes outlived it"
+
+
+def test_a_policy_retrained_in_place_is_not_resumed(tmp_path):
+    """Runs belong to the weights that made them: a policy folder whose model.safetensors changed refuses
+    to resume (the old runs would be mixed with the new ones under one label), and --overwrite re-runs."""
+    import hashlib
+    import shutil
+
+    from safetensors.torch import load_file, save_file
+
+    policy = tmp_path / "policy"
+    shutil.copytree(Path(__file__).resolve().parents[1] / "policies" / "diffusion_cpu", policy)
+    out = tmp_path / "o"
+    cfg = dict(policies=[str(policy)], num_initial_conditions=1, runs=1, timeout_s=1.0, videos=0, output_dir=str(out))
+
+    def fingerprint() -> str:
+        return json.loads((out / "settings.json").read_text())["policy_weights"][str(policy)]
+
+    evaluate(EvaluateConfig(**cfg))
+    first = read_runs(out / "runs.jsonl")
+    assert fingerprint() == hashlib.sha256((policy / "model.safetensors").read_bytes()).hexdigest()[:16]
+    evaluate(EvaluateConfig(**cfg))  # the same weights: nothing to run again
+    assert read_runs(out / "runs.jsonl") == first
+
+    tensors = load_file(policy / "model.safetensors")
+    name = next(iter(tensors))
+    tensors[name] = tensors[name] + 1
+    save_file(tensors, policy / "model.safetensors")
+    with pytest.raises(FileExistsError, match="other weights"):
+        evaluate(EvaluateConfig(**cfg))
+    assert read_runs(out / "runs.jsonl") == first
+    evaluate(EvaluateConfig(**cfg, overwrite=True))
+    assert len(read_runs(out / "runs.jsonl")) == 1
+    assert fingerprint() == hashlib.sha256((policy / "model.safetensors").read_bytes()).hexdigest()[:16]
