@@ -190,7 +190,7 @@ def run_demo(cfg: DemoConfig) -> None:
             videos=cfg.policy_ics,
             overwrite=cfg.overwrite,
         )
-        if not cfg.overwrite and changed_weights(ev):
+        if not cfg.overwrite and changed_weights(ev, unrecorded_changed=True):
             print(f"{cfg.policy} changed since the last demo: its runs in {policy_dir} are made again")
             ev = replace(ev, overwrite=True)
         print(evaluate(ev)["tables_md"])

@@ -163,15 +163,19 @@ def weights_fingerprint(policy: str) -> str:
     return h.hexdigest()[:16]
 
 
-def changed_weights(cfg: EvaluateConfig) -> list[str]:
+def changed_weights(cfg: EvaluateConfig, unrecorded_changed: bool = False) -> list[str]:
     """Learned policies of cfg whose weights differ from those that made the runs already in output_dir.
 
     A policy is named by its folder, and retraining into the same folder is common: without this check a
-    re-run would resume and mix the old weights' runs with the new ones' under one label.
+    re-run would resume and mix the old weights' runs with the new ones' under one label. Folders written
+    before weights were recorded count as unchanged unless `unrecorded_changed`.
     """
     path = Path(cfg.output_dir) / "settings.json"
-    stored = json.loads(path.read_text()).get("policy_weights", {}) if path.is_file() else {}
-    return [p for p in cfg.policies if p in stored and stored[p] != weights_fingerprint(p)]
+    if not path.is_file():
+        return []
+    stored = json.loads(path.read_text()).get("policy_weights", {})
+    learned = [p for p in cfg.policies if p not in GCS_POLICIES]
+    return [p for p in learned if stored.get(p) != weights_fingerprint(p) and (p in stored or unrecorded_changed)]
 
 
 def variants(cfg: EvaluateConfig) -> list[tuple[str, bool]]:

@@ -13,7 +13,14 @@ import numpy as np
 import pytest
 from conftest import gcs_push, kill_when
 
-from lerobot_gcs_push.evaluation import TIMING_FIELDS, EvaluateConfig, _regret_summary, evaluate, read_runs
+from lerobot_gcs_push.evaluation import (
+    TIMING_FIELDS,
+    EvaluateConfig,
+    _regret_summary,
+    changed_weights,
+    evaluate,
+    read_runs,
+)
 
 REQUIRED = (
     "policy",
@@ -249,6 +256,13 @@ def test_a_policy_retrained_in_place_is_not_resumed(tmp_path):
     assert fingerprint() == hashlib.sha256((policy / "model.safetensors").read_bytes()).hexdigest()[:16]
     evaluate(EvaluateConfig(**cfg))  # the same weights: nothing to run again
     assert read_runs(out / "runs.jsonl") == first
+    # A folder from before weights were recorded: evaluate resumes it, the demo (unrecorded_changed) does not.
+    settings = json.loads((out / "settings.json").read_text())
+    legacy = tmp_path / "legacy"
+    legacy.mkdir()
+    (legacy / "settings.json").write_text(json.dumps({k: v for k, v in settings.items() if k != "policy_weights"}))
+    legacy_cfg = EvaluateConfig(**(cfg | {"output_dir": str(legacy)}))
+    assert changed_weights(legacy_cfg) == [] and changed_weights(legacy_cfg, unrecorded_changed=True) == [str(policy)]
 
     tensors = load_file(policy / "model.safetensors")
     name = next(iter(tensors))
