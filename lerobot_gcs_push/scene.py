@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from lerobot_gcs_push.shapes import SliderShape, square, tee
+
 
 @dataclass(frozen=True)
 class Disturbances:
@@ -66,6 +68,14 @@ class Scene:
     # Planner geometry: the buffer that keeps the finger clear of the box while it moves around it,
     # and the perpendicular approach/retreat through which every push starts and ends.
     transition_buffer: float = 0.2
+    # Slider: which shape is pushed (shapes.py) and whether it may turn. GcsPushBox-v0 is the box with
+    # its yaw locked (the paper's convex simplification); the rotating envs set `rotates`.
+    slider: str = "box"  # "box" (a square of box_size) or "tee" (gym-pusht's T, bar tee_bar_length)
+    rotates: bool = False
+    tee_bar_length: float = 2.0
+    goal_heading: float = 0.0  # radians, the goal pose's heading (a rotating slider only)
+    # The limit surface's torque scale, tau_max = f_max * c * r_max (the reference uses c = 0.3-0.6).
+    limit_surface_c: float = 0.6
     camera: Camera = field(default_factory=Camera)
     disturbances: Disturbances = field(default_factory=Disturbances)
 
@@ -89,6 +99,20 @@ class Scene:
             raise ValueError(f"Scene.goal {self.goal} lies outside the box's region |x|,|y| <= {self.box_limit}")
 
     # Derived quantities: computed here once so that no module re-derives them differently.
+    @property
+    def shape(self) -> SliderShape:
+        if self.slider == "box":
+            return square(self.box_size)
+        if self.slider == "tee":
+            return tee(self.tee_bar_length)
+        raise ValueError(f"unknown slider {self.slider!r}: choose 'box' or 'tee'")
+
+    @property
+    def rot_damping(self) -> float:
+        """N*m*s/rad on the yaw joint. Quasi-statically v = f / b and omega = tau / b_theta: an ellipsoidal
+        limit surface with tau_max / f_max = sqrt(b_theta / b) = c * r_max, the planner's own model."""
+        return self.box_damping * (self.limit_surface_c * self.shape.r_max) ** 2
+
     @property
     def box_half(self) -> float:
         return self.box_size / 2
