@@ -1,4 +1,4 @@
-"""`gcs-push COMMAND [--config_path=FILE] [--field=value ...]`: plan, generate, evaluate, collect, demo.
+"""`gcs-push COMMAND [--config_path=FILE] [--field=value ...]`: plan, generate, evaluate, collect, improve, demo.
 
 Each command's options are the fields of its configuration dataclass (the same one the Python API
 takes), parsed by draccus as LeRobot's own CLIs are: `--config_path` loads a JSON or YAML file and
@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 from lerobot_gcs_push.active import CollectConfig
 from lerobot_gcs_push.dataset import GenerateConfig
 from lerobot_gcs_push.evaluation import EvaluateConfig
+from lerobot_gcs_push.improve import ImproveConfig
 from lerobot_gcs_push.scene import Scene, load_initial_conditions
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")  # nothing here may reach the network unless asked to
@@ -142,6 +143,16 @@ def run_collect(cfg: CollectConfig) -> None:
     )
 
 
+def run_improve(cfg: ImproveConfig) -> None:
+    from lerobot_gcs_push.improve import improve
+
+    report = improve(cfg)
+    for r in report.get("rounds", []):
+        scores = ", ".join(f"{name} {s['successes']}/{s['runs']}" for name, s in r["winner_by_set"].items())
+        print(f"round {r['round']} at {r['hours']:.2f} h: {'shipped' if r['shipped'] else 'kept'}; {scores}")
+    print(f"state in {cfg.state_dir}/state.json (commit that folder to resume on another machine)")
+
+
 def run_demo(cfg: DemoConfig) -> None:
     """Demonstrations, the GCS experts under the paper's protocol, and the shipped policy beside GCS on
     a few initial conditions with side-by-side videos."""
@@ -217,6 +228,7 @@ COMMANDS: dict[str, tuple[type, Callable, str]] = {
     "generate": (GenerateConfig, run_generate, "write GCS demonstrations as a LeRobotDataset"),
     "evaluate": (EvaluateConfig, run_evaluate, "the paper's protocol, with regret, for any set of policies"),
     "collect": (CollectConfig, run_collect, "active data: label the states a policy visited with the expert"),
+    "improve": (ImproveConfig, run_improve, "rounds of active data until the policy is robust (resumable)"),
     "demo": (DemoConfig, run_demo, "the main job on its defaults"),
 }
 

@@ -562,6 +562,28 @@ def _merge(cfg: GenerateConfig, root: Path, shard_roots: list[Path], metas: list
     os.replace(staging, root)
 
 
+def merge_datasets(repo_ids: list[str], repo_id: str, desc: str = "merge") -> Path:
+    """LeRobot's aggregation of whole datasets from the cache into `repo_id` there, which appears whole or
+    not at all (a killed merge leaves only a staging folder, removed by the next try)."""
+    from lerobot.datasets.aggregate import aggregate_datasets
+    from tqdm.auto import tqdm
+
+    home = lerobot_home()
+    root = home / repo_id
+    if (root / "meta" / "info.json").is_file():
+        return root
+    for r in repo_ids:
+        if not (home / r / "meta" / "info.json").is_file():
+            raise FileNotFoundError(f"cannot merge {r}: no LeRobotDataset at {home / r}")
+    staging = root.with_name(root.name + ".staging")
+    shutil.rmtree(staging, ignore_errors=True)
+    with tqdm(total=1, desc=desc, unit="merge", dynamic_ncols=True) as bar, _batched_image_embedding():
+        aggregate_datasets(repo_ids, repo_id, roots=[home / r for r in repo_ids], aggr_root=staging)
+        bar.update(1)
+    os.replace(staging, root)
+    return root
+
+
 def _progress(cfg: GenerateConfig):
     from tqdm.auto import tqdm
 
@@ -593,20 +615,45 @@ def _batched_image_embedding():
         fmt = dataset.format
         return dataset.with_format("arrow").map(embed_table_storage, batched=True).with_format(**fmt)
 
-    from datasets.utils import logging as datasets_logging
+    with _quiet_library_bars():
+        for m in modules:
+            m.embed_images = embed_images
+        try:
+            yield
+        finally:
+            for m, original in zip(modules, originals, strict=True):
+                m.embed_images = original
 
-    # `datasets` draws a "Map" bar for every episode saved: one line per episode under our own bar.
+
+@contextlib.contextmanager
+def _quiet_library_bars():
+    """No library bars under our own one bar per stage: `datasets` draws "Generating train split" and
+    "Map" for every episode saved or loaded, LeRobot's aggregation "Copy data and videos". LeRobot's own
+    SuppressProgressBars turns datasets' bars back on when it exits, so that switch is held off too."""
+    from datasets.utils import logging as datasets_logging
+    from lerobot.datasets import aggregate
+
     bars_were_on = datasets_logging.is_progress_bar_enabled()
+    enable, library_tqdm = datasets_logging.enable_progress_bar, aggregate.tqdm
     datasets_logging.disable_progress_bar()
-    for m in modules:
-        m.embed_images = embed_images
+    datasets_logging.enable_progress_bar = lambda: None
+    aggregate.tqdm = _SilentTqdm
     try:
         yield
     finally:
-        for m, original in zip(modules, originals, strict=True):
-            m.embed_images = original
+        datasets_logging.enable_progress_bar, aggregate.tqdm = enable, library_tqdm
         if bars_were_on:
-            datasets_logging.enable_progress_bar()
+            enable()
+
+
+class _SilentTqdm:
+    """Stands in for the `tqdm` module inside lerobot.datasets.aggregate."""
+
+    @staticmethod
+    def tqdm(iterable=None, *args, **kwargs):
+        from tqdm.auto import tqdm
+
+        return tqdm(iterable, *args, **{**kwargs, "disable": True})
 
 
 class _Writer:
