@@ -196,7 +196,8 @@ def show(path: Path, policy: str | None) -> None:
             gsum = gcs.get("successes_sum") if gcs else None
             ratio = ratios = None
             if gcs and v["success_sim_time_s"]:
-                ratio = v["success_sim_time_s"] / gcs["success_sim_time_s"]  # the ratio of the means, as tables.md
+                # The ratio of the means, as tables.md; +dist rows against GCS closed loop +dist when it ran.
+                ratio = v["success_sim_time_s"] / gcs["success_sim_time_s"]
                 ratios = [row[3] / g[3] for row, g in zip(v["per_ic"], gcs["per_ic"]) if row[1] and g[1]]
             path_r = speed_r = None
             ss = v.get("successes_sum")
@@ -206,7 +207,7 @@ def show(path: Path, policy: str | None) -> None:
                     speed_r = (ss["path_m"] / ss["sim_time_s"]) / (gsum["path_m"] / gsum["sim_time_s"])
             below = sum(1 for row in v["per_ic"] if row[0] and row[1] / row[0] < 0.8)
             print(f"| {label} | {v['successes']} / {v['runs']} | {_f(v['successes'] / v['runs'])} / "
-                  f"{_f(v['successes_0.2'] / v['runs'])} | {_f(v['success_sim_time_s'], 1)} | {_f(ratio)}x | "
+                  f"{_f(v['successes_0.2'] / v['runs'])} | {_f(v['success_sim_time_s'], 1)} | {_f(ratio) + 'x' if ratio else '-'} | "
                   f"{_f(statistics.median(ratios)) if ratios else '-'} | {_f(v['run_time_s'])} | "
                   f"{_f(v.get('regret_mean'))} / {_f(v.get('regret_p95'))} | {_f(path_r)} | {_f(speed_r)} | {below} |")
         print()
