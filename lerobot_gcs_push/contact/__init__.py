@@ -1,0 +1,8 @@
+"""Planning through contact for a rotating slider (issue 32): sticking face-contact modes relaxed as
+sparse moment blocks, non-collision modes in the slider's frame, a layered mode graph, its convex
+relaxation (Clarabel) and rounding (SNOPT on sampled paths). See planner.py for the entry point."""
+
+from lerobot_gcs_push.contact.plan import ContactPlan
+from lerobot_gcs_push.contact.planner import ContactPlanner, PlanningError
+
+__all__ = ["ContactPlan", "ContactPlanner", "PlanningError"]

@@ -1,0 +1,263 @@
+"""A sticking face-contact mode: its constraints as quadratic forms, their semidefinite relaxation, and
+the same constraints as a nonlinear program.
+
+One knot step k couples the monomials of z_k = [1, lam, c_k, s_k, fn_k, ft_k, c_k+1, s_k+1] (lam: where
+on the face the finger sits, constant while sticking; fn, ft: the body-frame displacement along -n and t;
+(c, s): the heading on SO(2)) and the linear positions x_k, x_k+1, y_k, y_k+1. Every constraint is
+written once, here, as coefficients on those monomials (`StepForms`); the relaxation reads them against
+a moment block M_k ~ z_k z_k^T, the nonlinear program against z_k itself. Only that reading differs.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from itertools import combinations
+
+import cvxpy as cp
+import numpy as np
+
+from lerobot_gcs_push.contact.model import Face, PushModel, cross
+
+ONE, LAM, C0, S0, FN, FT, C1, S1 = range(8)
+BLOCK = 8
+# Adjacent blocks share [1, lam, c_k+1, s_k+1]: block k's (ONE, LAM, C1, S1) is block k+1's (ONE, LAM, C0, S0).
+SHARED_TAIL = [ONE, LAM, C1, S1]
+SHARED_HEAD = [ONE, LAM, C0, S0]
+POSE_HEAD = [ONE, C0, S0]
+POSE_TAIL = [ONE, C1, S1]
+MAX_STEP_ROTATION = 0.35  # rad per knot step: keeps sin(dtheta) ~ dtheta (2 %) and rules out flips
+
+
+def _form(monomials: dict[tuple[int, int], float]) -> np.ndarray:
+    """A symmetric 8 x 8 Q with <Q, z z^T> = sum coef * z_i z_j."""
+    q = np.zeros((BLOCK, BLOCK))
+    for (i, j), c in monomials.items():
+        if i == j:
+            q[i, i] += c
+        else:
+            q[i, j] += c / 2
+            q[j, i] += c / 2
+    return q
+
+
+def _lin(g: dict[int, float]) -> np.ndarray:
+    v = np.zeros(BLOCK)
+    for i, c in g.items():
+        v[i] += c
+    return v
+
+
+@dataclass
+class StepForms:
+    """The constraints of one knot step. Equalities: <Q, zz^T> + L . [x0, x1, y0, y1] = 0; inequalities
+    <Q, zz^T> >= 0; `redundant` inequalities (RLT products) hold for every feasible z and only tighten
+    the relaxation; the cost <Q_cost, zz^T>."""
+
+    eq_q: np.ndarray  # (m, 8, 8)
+    eq_l: np.ndarray  # (m, 4)
+    ineq_q: np.ndarray  # (p, 8, 8)
+    redundant_q: np.ndarray  # (r, 8, 8)
+    cost_q: np.ndarray  # (8, 8)
+    linear: list[np.ndarray] = field(default_factory=list)  # the first-order inequalities g . z >= 0
+
+
+def step_forms(face: Face, model: PushModel, rot_weight: float, rlt: bool = True) -> StepForms:
+    n, t, a, e, k = face.n, face.t, face.a, face.e, model.kappa
+    eqs: list[tuple[dict, list[float]]] = []
+    # Midpoint translation: x1 - x0 = (R_k + R_k+1)/2 d, d = -fn n + ft t in the slider frame.
+    mx, my = {}, {}
+    for c, s in ((C0, S0), (C1, S1)):
+        mx[(c, FN)], mx[(c, FT)], mx[(s, FN)], mx[(s, FT)] = n[0] / 2, -t[0] / 2, -n[1] / 2, t[1] / 2
+        my[(s, FN)], my[(s, FT)], my[(c, FN)], my[(c, FT)] = n[0] / 2, -t[0] / 2, n[1] / 2, -t[1] / 2
+    eqs.append((mx, [-1.0, 1.0, 0.0, 0.0]))
+    eqs.append((my, [0.0, 0.0, -1.0, 1.0]))
+    # Rotation: sin(theta_k+1 - theta_k) = kappa * (a + lam e) x d; e x t = 0.
+    eqs.append(
+        (
+            {
+                (C0, S1): 1.0,
+                (S0, C1): -1.0,
+                (ONE, FN): -k * cross(a, -n),
+                (ONE, FT): -k * cross(a, t),
+                (LAM, FN): -k * cross(e, -n),
+            },
+            [0.0] * 4,
+        )
+    )
+    for c, s in ((C0, S0), (C1, S1)):
+        eqs.append(({(c, c): 1.0, (s, s): 1.0, (ONE, ONE): -1.0}, [0.0] * 4))
+    step = {(C0, C1): 1.0, (S0, S1): 1.0, (ONE, ONE): -math.cos(MAX_STEP_ROTATION)}
+    # First-order inequalities: the friction cone, lam on the face, (c, s) in [-1, 1]^2.
+    contact = [
+        _lin({LAM: 1.0}),
+        _lin({ONE: 1.0, LAM: -1.0}),
+        _lin({FN: 1.0}),
+        _lin({FN: model.mu, FT: -1.0}),
+        _lin({FN: model.mu, FT: 1.0}),
+    ]
+    trig = [_lin({ONE: 1.0, i: sgn}) for i in (C0, S0, C1, S1) for sgn in (1.0, -1.0)]
+    ineqs = [_form(step)] + [_form({(ONE, i): g[i] for i in range(BLOCK) if g[i]}) for g in contact]
+    redundant = []
+    if rlt:
+        # Products of pairs of valid linear inequalities (RLT): the slack of the plain relaxation sits in
+        # lam x fn (the torque arm), which these bound from both sides.
+        for g, h in list(combinations(contact, 2)) + [(g, h) for g in trig for h in contact]:
+            redundant.append(np.outer(g, h) / 2 + np.outer(h, g) / 2)
+    cost = _form({(FN, FN): 1.0, (FT, FT): 1.0, (ONE, ONE): 2 * rot_weight, (C0, C1): -2 * rot_weight})
+    cost += _form({(S0, S1): -2 * rot_weight})
+    return StepForms(
+        eq_q=np.array([_form(m) for m, _ in eqs]),
+        eq_l=np.array([lin for _, lin in eqs]),
+        ineq_q=np.array(ineqs),
+        redundant_q=np.array(redundant).reshape(-1, BLOCK, BLOCK),
+        cost_q=cost,
+        linear=contact,
+    )
+
+
+def finger_body(face: Face, model: PushModel, lam):
+    """The finger's centre in the slider frame while touching `face` at lam (linear in lam)."""
+    base = face.a + model.finger_radius * face.n
+    # Element by element: numpy's float-array times a symbolic scalar warns on object dtypes.
+    return np.array([float(base[i]) + lam * float(face.e[i]) for i in range(2)])
+
+
+# ---------------------------------------------------------------------------------------------------------
+# The relaxation: one perspective copy (scale phi) of the mode, its moment blocks and linear positions.
+
+
+class RelaxedFaceContact:
+    def __init__(self, face: Face, model: PushModel, forms: StepForms, knots: int, phi):
+        self.face, self.model, self.knots, self.phi = face, model, knots, phi
+        steps = knots - 1
+        self.blocks = [cp.Variable((BLOCK, BLOCK), symmetric=True) for _ in range(steps)]
+        self.x = cp.Variable(knots)
+        self.y = cp.Variable(knots)
+        cons = []
+        reach = model.reach
+        cons += [self.x <= reach * phi, self.x >= -reach * phi, self.y <= reach * phi, self.y >= -reach * phi]
+        eq_a = forms.eq_q.reshape(len(forms.eq_q), -1)
+        in_a = np.concatenate([forms.ineq_q, forms.redundant_q]).reshape(-1, BLOCK * BLOCK)
+        cost = 0
+        for k, m in enumerate(self.blocks):
+            v = cp.vec(m, order="F")
+            pos = cp.hstack([self.x[k], self.x[k + 1], self.y[k], self.y[k + 1]])
+            cons += [m >> 0, m[ONE, ONE] == phi, eq_a @ v + forms.eq_l @ pos == 0, in_a @ v >= 0]
+            cost = cost + cp.sum(cp.multiply(forms.cost_q, m))
+            if k:
+                prev = self.blocks[k - 1]
+                cons.append(prev[np.ix_(SHARED_TAIL, SHARED_TAIL)] == m[np.ix_(SHARED_HEAD, SHARED_HEAD)])
+        self.constraints = cons
+        self.cost = cost
+
+    # The interface to neighbouring vertices, each a perspective (phi-scaled) quantity.
+    def pose(self, end: bool):
+        m, k = (self.blocks[-1], -1) if end else (self.blocks[0], 0)
+        c, s = (C1, S1) if end else (C0, S0)
+        return cp.hstack([self.x[k], self.y[k], m[ONE, c], m[ONE, s]])
+
+    def pose_moments(self, end: bool):
+        m = self.blocks[-1] if end else self.blocks[0]
+        idx = POSE_TAIL if end else POSE_HEAD
+        return m[np.ix_(idx, idx)]
+
+    def lam(self):
+        return self.blocks[0][ONE, LAM]
+
+    def finger(self):
+        f = self.face
+        return self.phi * (f.a + self.model.finger_radius * f.n) + self.lam() * f.e
+
+    def values(self, phi_value: float) -> dict:
+        """The copy's values divided by its flow: an initial guess for the nonlinear program."""
+        w = max(phi_value, 1e-9)
+        c = [b.value[ONE, C0] / w for b in self.blocks] + [self.blocks[-1].value[ONE, C1] / w]
+        s = [b.value[ONE, S0] / w for b in self.blocks] + [self.blocks[-1].value[ONE, S1] / w]
+        return {
+            "lam": float(self.blocks[0].value[ONE, LAM] / w),
+            "c": np.array(c),
+            "s": np.array(s),
+            "fn": np.array([b.value[ONE, FN] / w for b in self.blocks]),
+            "ft": np.array([b.value[ONE, FT] / w for b in self.blocks]),
+            "x": self.x.value / w,
+            "y": self.y.value / w,
+        }
+
+
+# ---------------------------------------------------------------------------------------------------------
+# The nonlinear program: the same forms read against the decision variables (pydrake, lazily imported).
+
+
+class NlpFaceContact:
+    def __init__(self, prog, face: Face, model: PushModel, forms: StepForms, knots: int, tag: str):
+        self.face, self.model, self.knots = face, model, knots
+        self.lam = prog.NewContinuousVariables(1, f"{tag}_lam")[0]
+        self.c = prog.NewContinuousVariables(knots, f"{tag}_c")
+        self.s = prog.NewContinuousVariables(knots, f"{tag}_s")
+        self.fn = prog.NewContinuousVariables(knots - 1, f"{tag}_fn")
+        self.ft = prog.NewContinuousVariables(knots - 1, f"{tag}_ft")
+        self.x = prog.NewContinuousVariables(knots, f"{tag}_x")
+        self.y = prog.NewContinuousVariables(knots, f"{tag}_y")
+        prog.AddBoundingBoxConstraint(0.0, 1.0, self.lam)
+        prog.AddBoundingBoxConstraint(-model.reach, model.reach, self.x)
+        prog.AddBoundingBoxConstraint(-model.reach, model.reach, self.y)
+        prog.AddBoundingBoxConstraint(-1.0, 1.0, self.c)
+        prog.AddBoundingBoxConstraint(-1.0, 1.0, self.s)
+        prog.AddBoundingBoxConstraint(0.0, np.inf, self.fn)
+        self.cost = 0
+        for k in range(knots - 1):
+            z = np.array([1.0, self.lam, self.c[k], self.s[k], self.fn[k], self.ft[k], self.c[k + 1], self.s[k + 1]])
+            pos = np.array([self.x[k], self.x[k + 1], self.y[k], self.y[k + 1]])
+            for q, lin in zip(forms.eq_q, forms.eq_l):
+                prog.AddConstraint(_quadratic(q, z) + _dot(lin, pos) == 0)
+            for q in forms.ineq_q:
+                prog.AddConstraint(_quadratic(q, z) >= 0)
+            self.cost = self.cost + _quadratic(forms.cost_q, z)
+        prog.AddCost(self.cost)
+
+    def pose(self, end: bool):
+        k = -1 if end else 0
+        return [self.x[k], self.y[k], self.c[k], self.s[k]]
+
+    def finger(self):
+        return finger_body(self.face, self.model, self.lam)
+
+    def set_guess(self, prog, guess: dict) -> None:
+        c, s = np.asarray(guess["c"], float), np.asarray(guess["s"], float)
+        norm = np.maximum(np.hypot(c, s), 1e-9)  # the relaxation's headings lie inside the unit disk
+        prog.SetInitialGuess(self.c, c / norm)
+        prog.SetInitialGuess(self.s, s / norm)
+        prog.SetInitialGuess(self.lam, float(np.clip(guess["lam"], 0.0, 1.0)))
+        prog.SetInitialGuess(self.fn, np.maximum(guess["fn"], 0.0))
+        prog.SetInitialGuess(self.ft, guess["ft"])
+        prog.SetInitialGuess(self.x, guess["x"])
+        prog.SetInitialGuess(self.y, guess["y"])
+
+    def read(self, result) -> dict:
+        return {
+            "face": self.face.index,
+            "lam": float(result.GetSolution(self.lam)),
+            "c": result.GetSolution(self.c),
+            "s": result.GetSolution(self.s),
+            "fn": result.GetSolution(self.fn),
+            "ft": result.GetSolution(self.ft),
+            "x": result.GetSolution(self.x),
+            "y": result.GetSolution(self.y),
+        }
+
+
+def _quadratic(q: np.ndarray, z) -> object:
+    """z^T Q z over Q's nonzero entries (z[0] is the constant 1)."""
+    out = 0
+    for i, j in zip(*np.nonzero(np.triu(q))):
+        coef = q[i, j] if i == j else 2 * q[i, j]
+        out = out + coef * (z[i] * z[j] if i and j else z[i] if j == 0 else z[j] if i == 0 else 1.0)
+    return out
+
+
+def _dot(v: np.ndarray, x) -> object:
+    out = 0
+    for i in np.nonzero(v)[0]:
+        out = out + v[i] * x[i]
+    return out

@@ -1,0 +1,79 @@
+"""The quasi-static pushing model of a rotating slider, derived once from a `Scene`.
+
+Units: a contact step's "force" is the slider's body-frame displacement over the step (v = f / b times
+the step's duration), so the time step drops out and displacements stay O(1) inside the solver. The
+rotation over a step is then kappa * (p x d) with kappa = b / b_theta = 1 / (c r_max)^2: the
+ellipsoidal limit surface of the scene's damped joints (Scene.rot_damping).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from lerobot_gcs_push.scene import Scene
+
+
+def cross(u, v) -> float:
+    return float(u[0] * v[1] - u[1] * v[0])
+
+
+@dataclass(frozen=True)
+class Face:
+    index: int
+    a: np.ndarray  # start vertex (slider frame)
+    e: np.ndarray  # b - a: the contact point is a + lam * e, lam in [0, 1]
+    n: np.ndarray  # outward unit normal
+    t: np.ndarray  # unit tangent, along e
+
+    @property
+    def offset(self) -> float:
+        """n . q on the face's line."""
+        return float(self.n @ self.a)
+
+
+@dataclass(frozen=True)
+class PushModel:
+    faces: tuple[Face, ...]
+    kappa: float  # 1/m^2: rotation per unit torque-arm displacement
+    mu: float
+    finger_radius: float
+    r_max: float
+    symmetry: int  # the shape maps onto itself under rotations by 2 pi / symmetry
+    convex: bool
+    goal: tuple[float, float, float]
+    reach: float  # slider centres stay within |x|, |y| <= reach
+    finger_reach: float  # finger centre within this distance (inf-norm) of the slider centre, slider frame
+
+    @classmethod
+    def from_scene(cls, scene: Scene) -> PushModel:
+        shape = scene.shape
+        faces = []
+        for i, (a, b, n) in enumerate(shape.faces()):
+            e = np.asarray(b - a, float)
+            faces.append(Face(i, np.asarray(a, float), e, np.asarray(n, float), e / np.linalg.norm(e)))
+        b, b_theta = scene.box_damping, scene.rot_damping
+        # The square is the only symmetric shape today; derived here, not a Scene field (see the report).
+        symmetry = 4 if shape.name == "box" else 1
+        convex = len(shape.parts) == 1
+        return cls(
+            faces=tuple(faces),
+            kappa=b / b_theta,
+            mu=scene.finger_box_friction,
+            finger_radius=scene.finger_radius,
+            r_max=shape.r_max,
+            symmetry=symmetry,
+            convex=convex,
+            goal=(float(scene.goal[0]), float(scene.goal[1]), float(scene.goal_heading)),
+            reach=scene.box_reach,
+            finger_reach=2 * scene.finger_limit,  # any commanded finger, seen from any slider centre
+        )
+
+    def goal_heading_near(self, heading: float) -> float:
+        """The goal heading among the shape's symmetric copies nearest to `heading`: a symmetric slider at
+        goal + 2 pi k / symmetry covers the goal exactly, so no plan should turn further."""
+        step = 2 * math.pi / self.symmetry
+        g = self.goal[2]
+        return g + step * round((heading - g) / step)

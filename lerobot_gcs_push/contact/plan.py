@@ -1,0 +1,131 @@
+"""A plan for a rotating slider: the mode sequence, slider poses and finger positions at every knot,
+the pushes' contact points and displacements, the cost and the relaxation's certified lower bound."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+import numpy as np
+
+from lerobot_gcs_push.contact.face_contact import finger_body
+from lerobot_gcs_push.contact.graph import ContactGraph
+from lerobot_gcs_push.contact.model import PushModel
+from lerobot_gcs_push.contact.rounding import Restriction
+
+
+# The kinds and speeds mirror lerobot_gcs_push.planner.plan's, defined here so that this package does not
+# import the planner package (under edit by others; a rotating plan has no approach or retreat segments).
+class SegmentKind(StrEnum):
+    FREE = "free"
+    PUSH = "push"
+
+
+FREE, PUSH = SegmentKind
+
+
+@dataclass(frozen=True)
+class Speeds:
+    """Maximum finger speed per segment kind (m/s), as the box planner's defaults."""
+
+    free: float = 1.0
+    push: float = 0.4
+
+    def of(self, kind: SegmentKind) -> float:
+        return getattr(self, str(kind))
+
+
+@dataclass
+class ContactPlan:
+    method: str
+    cost: float  # the objective: sum of squared knot-to-knot displacements (m^2), rotation as chord^2 r_max^2
+    lower_bound: float  # certified by the graph relaxation (-inf for the baseline, which certifies nothing)
+    solve_time_s: float
+    modes: list[str]
+    slider_poses: np.ndarray  # (K, 3): x, y, heading at each knot
+    finger_path: np.ndarray  # (K, 2): finger centre in the world at each knot
+    segment_kinds: list[SegmentKind]  # (K - 1,): FREE or PUSH
+    goal: np.ndarray  # (3,): the goal pose the plan ends at (the shape's nearest symmetric copy)
+    pushes: list[dict] = field(default_factory=list)  # face, lam, fn, ft per contact mode
+    candidates: int = 1
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def gap(self) -> float:
+        """(cost - bound) / cost: how far from optimal the plan can be, at most."""
+        return float((self.cost - self.lower_bound) / self.cost) if self.cost > 0 else 0.0
+
+    @property
+    def slider_final(self) -> np.ndarray:
+        return self.slider_poses[-1]
+
+    @property
+    def finger_length(self) -> float:
+        return float(np.sum(np.linalg.norm(np.diff(self.finger_path, axis=0), axis=1)))
+
+    def _times(self, speeds: Speeds) -> np.ndarray:
+        seg = np.linalg.norm(np.diff(self.finger_path, axis=0), axis=1)
+        v = np.array([speeds.of(k) for k in self.segment_kinds])
+        return np.concatenate([[0.0], np.cumsum(seg / v)])
+
+    def duration(self, speeds: Speeds | None = None) -> float:
+        return float(self._times(speeds or Speeds())[-1])
+
+    def commands(self, fps: float, speeds: Speeds | None = None) -> np.ndarray:
+        """Finger position commands at t = 1/fps, 2/fps, ... (pushes at the push speed; no lead or dwell
+        yet: the rotating sim's tracking lag is not calibrated)."""
+        t_knots = self._times(speeds or Speeds())
+        n = max(1, int(np.ceil(t_knots[-1] * fps - 1e-9)))
+        t = np.minimum(np.arange(1, n + 1) / fps, t_knots[-1])
+        return np.stack([np.interp(t, t_knots, self.finger_path[:, i]) for i in range(2)], axis=1)
+
+    def to_json(self) -> dict:
+        return {
+            "method": self.method,
+            "cost": self.cost,
+            "lower_bound": self.lower_bound,
+            "gap": self.gap,
+            "solve_time_s": self.solve_time_s,
+            "modes": self.modes,
+            "slider_poses": self.slider_poses.tolist(),
+            "finger_path": self.finger_path.tolist(),
+            "segment_kinds": [str(k) for k in self.segment_kinds],
+            "goal": self.goal.tolist(),
+            "pushes": [{k: np.asarray(v).tolist() for k, v in p.items()} for p in self.pushes],
+            "candidates": self.candidates,
+            **self.extra,
+        }
+
+
+def trace(model: PushModel, graph: ContactGraph, r: Restriction, start_pose) -> tuple:
+    """Knots of a solved restriction: slider poses, world finger positions, kinds, modes, pushes."""
+    poses, fingers, kinds, modes, pushes = [], [], [], [], []
+    pose = np.asarray(start_pose, float)
+
+    def world(p, q):
+        c, s = np.cos(p[2]), np.sin(p[2])
+        return p[:2] + np.array([c * q[0] - s * q[1], s * q[0] + c * q[1]])
+
+    for f, q, c, sol in zip(r.path.frees, r.frees, r.path.contacts, r.contacts):
+        modes.append(graph.frees[f].name)
+        for k, qk in enumerate(q):
+            if poses and k == 0:
+                continue  # the previous contact's last knot
+            poses.append(pose.copy())
+            fingers.append(world(pose, qk))
+            if len(poses) > 1:
+                kinds.append(FREE)
+        face = model.faces[graph.contacts[c].face]
+        modes.append(graph.contacts[c].name)
+        qb = finger_body(face, model, sol["lam"])
+        th = np.unwrap(np.arctan2(sol["s"], sol["c"]))
+        th += 2 * np.pi * np.round((pose[2] - th[0]) / (2 * np.pi))
+        for k in range(len(th)):
+            p = np.array([sol["x"][k], sol["y"][k], th[k]])
+            if k:
+                poses.append(p)
+                fingers.append(world(p, qb))
+                kinds.append(PUSH)
+        pose = poses[-1]
+        pushes.append({"face": face.index, "lam": sol["lam"], "fn": sol["fn"], "ft": sol["ft"]})
+    return np.array(poses), np.array(fingers), kinds, modes, pushes

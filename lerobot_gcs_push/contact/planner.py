@@ -1,0 +1,187 @@
+"""ContactPlanner: plans through contact for a rotating slider.
+
+planner = ContactPlanner(Scene(rotates=True))
+plan = planner.plan(slider_pose=(x, y, heading), finger=(x, y))    # relaxation + rounding
+plan.cost, plan.lower_bound, plan.gap, plan.slider_poses, plan.finger_path, plan.modes
+planner.baseline(slider_pose, finger)                               # the NLP alone, heuristic guess
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from lerobot_gcs_push.contact.face_contact import finger_body, step_forms
+from lerobot_gcs_push.contact.graph import START, build_graph
+from lerobot_gcs_push.contact.model import PushModel
+from lerobot_gcs_push.contact.non_collision import free_regions, knots_of
+from lerobot_gcs_push.contact.plan import ContactPlan, trace
+from lerobot_gcs_push.contact.relaxation import GraphRelaxation
+from lerobot_gcs_push.contact.rounding import Path, round_relaxation, solve_restriction
+from lerobot_gcs_push.scene import Scene
+
+
+class PlanningError(RuntimeError):
+    pass
+
+
+class ContactPlanner:
+    def __init__(
+        self,
+        scene: Scene,
+        layers: int = 2,
+        knots: int = 5,
+        per_region: int = 2,
+        rot_weight: float | None = None,
+        rlt: bool = True,
+        candidates: int = 5,
+        seed: int = 0,
+    ):
+        self.scene = scene
+        self.model = PushModel.from_scene(scene)
+        self.layers, self.knots, self.per_region, self.candidates = layers, knots, per_region, candidates
+        # The finger sweeps about r_max per radian the slider turns: weight the rotation chord^2 alike.
+        self.rot_weight = self.model.r_max**2 if rot_weight is None else rot_weight
+        self.graph = build_graph(self.model, layers)
+        self.regions = free_regions(self.model)
+        self.forms = [step_forms(f, self.model, self.rot_weight, rlt) for f in self.model.faces]
+        self.rng = np.random.default_rng(seed)
+        self._relaxation = None
+        self._rlt = rlt
+
+    @property
+    def relaxation(self) -> GraphRelaxation:
+        if self._relaxation is None:
+            self._relaxation = GraphRelaxation(
+                self.model, self.graph, self.knots, self.per_region, self.rot_weight, self._rlt
+            )
+        return self._relaxation
+
+    def warm_up(self) -> float:
+        """Build and compile the relaxation once (cvxpy's compile stays off the query path)."""
+        t0 = time.perf_counter()
+        self.relaxation.solve((2.0, 1.0, 0.3), (4.0, 1.0), (0.0, 0.0, 0.0), np.ones(len(self.regions)))
+        return time.perf_counter() - t0
+
+    def query(self, slider_pose, finger):
+        """(start pose, finger in the slider frame, goal pose, which free pieces hold the finger)."""
+        pose = np.asarray(slider_pose, float)
+        c, s = np.cos(pose[2]), np.sin(pose[2])
+        d = np.asarray(finger, float) - pose[:2]
+        q = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+        allow = np.array([reg.contains(q) for reg in self.regions], float)
+        if not allow.any():
+            raise ValueError(
+                f"finger {list(finger)} lies in none of the free-space pieces around the slider at {list(pose)} "
+                "(too close to it, or beyond the finger's reach)"
+            )
+        goal = np.array([*self.model.goal[:2], self.model.goal_heading_near(pose[2])])
+        return pose, q, goal, allow
+
+    def plan(self, slider_pose, finger) -> ContactPlan:
+        pose, q, goal, allow = self.query(slider_pose, finger)
+        t0 = time.perf_counter()
+        res = self.relaxation.solve(pose, q, goal, allow)
+        t1 = time.perf_counter()
+        best, tried = round_relaxation(
+            self.model,
+            self.graph,
+            self.regions,
+            self.forms,
+            res,
+            self.knots,
+            self.per_region,
+            pose,
+            q,
+            goal,
+            self.candidates,
+            self.rng,
+        )
+        t2 = time.perf_counter()
+        if best is None:
+            raise PlanningError(f"no sampled path's restriction solved ({tried} tried, bound {res.bound:.4f})")
+        return self._plan(
+            "relaxation",
+            best,
+            pose,
+            goal,
+            res.bound,
+            t2 - t0,
+            tried,
+            {"relaxation_s": t1 - t0, "rounding_s": t2 - t1, "relaxation_status": res.status},
+        )
+
+    def baseline(self, slider_pose, finger) -> ContactPlan:
+        """The same nonlinear program without the relaxation: one push from the face that looks away from
+        the goal, reached by the shortest route, SNOPT from a straight-line guess."""
+        pose, q, goal, allow = self.query(slider_pose, finger)
+        t0 = time.perf_counter()
+        c, s = np.cos(pose[2]), np.sin(pose[2])
+        u = goal[:2] - pose[:2]
+        u = np.array([c * u[0] + s * u[1], -s * u[0] + c * u[1]])
+        face = int(np.argmax([-(f.n @ u) for f in self.model.faces]))
+        options = [
+            k for k, v in enumerate(self.graph.frees) if v.layer == START and allow[v.source] and v.target == face
+        ]
+        start_free = min(options, key=lambda k: len(self.graph.frees[k].route))
+        contact = self.graph.contact_index(0, face)
+        path = Path((start_free,), (contact,))
+        # Straight-line guess: poses interpolated start to goal, pushing mid-face.
+        w = np.linspace(0.0, 1.0, self.knots)
+        xs, ys, th = (pose[i] + w * (goal[i] - pose[i]) for i in range(3))
+        fn, ft = [], []
+        f = self.model.faces[face]
+        for k in range(self.knots - 1):
+            dw = np.array([xs[k + 1] - xs[k], ys[k + 1] - ys[k]])
+            ck, sk = np.cos(th[k]), np.sin(th[k])
+            db = np.array([ck * dw[0] + sk * dw[1], -sk * dw[0] + ck * dw[1]])
+            fn.append(-(f.n @ db))
+            ft.append(f.t @ db)
+        guess_c = {
+            "lam": 0.5,
+            "c": np.cos(th),
+            "s": np.sin(th),
+            "fn": np.array(fn),
+            "ft": np.array(ft),
+            "x": xs,
+            "y": ys,
+        }
+        n_q = knots_of(self.graph.frees[start_free].route, self.per_region)
+        end = finger_body(f, self.model, 0.5)
+        guess_q = q[None, :] + np.linspace(0, 1, n_q)[:, None] * (end - q)[None, :]
+        r = solve_restriction(
+            self.model,
+            self.graph,
+            self.regions,
+            self.forms,
+            path,
+            self.knots,
+            self.per_region,
+            pose,
+            q,
+            goal,
+            [guess_c],
+            [guess_q],
+        )
+        dt = time.perf_counter() - t0
+        if not r.success:
+            raise PlanningError("the baseline's SNOPT run found no feasible plan")
+        return self._plan("baseline", r, pose, goal, -np.inf, dt, 1, {})
+
+    def _plan(self, method, r, pose, goal, bound, dt, tried, extra) -> ContactPlan:
+        poses, fingers, kinds, modes, pushes = trace(self.model, self.graph, r, pose)
+        return ContactPlan(
+            method=method,
+            cost=r.cost,
+            lower_bound=bound,
+            solve_time_s=dt,
+            modes=modes,
+            slider_poses=poses,
+            finger_path=fingers,
+            segment_kinds=kinds,
+            goal=goal,
+            pushes=pushes,
+            candidates=tried,
+            extra=extra,
+        )

@@ -1,0 +1,138 @@
+"""The graph's convex relaxation: one perspective copy per vertex, flow conservation, and conservation
+of each interface (pose, its SO(2) second moments, the finger) across the edges.
+
+Compiled once with cvxpy Parameters (start pose, start finger, goal pose, which free-space pieces hold
+the start finger); a query only sets them and calls Clarabel.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import cvxpy as cp
+import numpy as np
+
+from lerobot_gcs_push.contact.face_contact import RelaxedFaceContact, step_forms
+from lerobot_gcs_push.contact.graph import ContactGraph
+from lerobot_gcs_push.contact.model import PushModel
+from lerobot_gcs_push.contact.non_collision import RelaxedNonCollision, free_regions
+
+
+def pose_vector(pose) -> np.ndarray:
+    x, y, th = (float(v) for v in pose)
+    return np.array([x, y, np.cos(th), np.sin(th)])
+
+
+def pose_moments(pose) -> np.ndarray:
+    v = np.concatenate([[1.0], pose_vector(pose)[2:]])
+    return np.outer(v, v)
+
+
+@dataclass
+class RelaxationResult:
+    bound: float
+    status: str
+    solve_time_s: float
+    contact_flow: np.ndarray
+    free_flow: np.ndarray
+    target_flow: np.ndarray
+    relaxation: GraphRelaxation
+
+    def contact_guess(self, c: int) -> dict:
+        return self.relaxation.contacts[c].values(self.contact_flow[c])
+
+    def free_guess(self, f: int) -> dict:
+        return self.relaxation.frees[f].values(self.free_flow[f])
+
+
+class GraphRelaxation:
+    def __init__(self, model: PushModel, graph: ContactGraph, knots: int, per_region: int, rot_weight: float, rlt=True):
+        self.model, self.graph = model, graph
+        self.regions = free_regions(model)
+        self.start = cp.Parameter(4)
+        self.start_moments = cp.Parameter((3, 3), symmetric=True)
+        self.start_q = cp.Parameter(2)
+        self.allow = cp.Parameter(len(self.regions), nonneg=True)
+        self.goal = cp.Parameter(4)
+        self.goal_moments = cp.Parameter((3, 3), symmetric=True)
+        self.phi_c = cp.Variable(len(graph.contacts), nonneg=True)
+        self.phi_f = cp.Variable(len(graph.frees), nonneg=True)
+        self.phi_t = cp.Variable(len(graph.contacts), nonneg=True)
+        forms = [step_forms(f, model, rot_weight, rlt) for f in model.faces]
+        self.contacts = [
+            RelaxedFaceContact(model.faces[v.face], model, forms[v.face], knots, self.phi_c[k])
+            for k, v in enumerate(graph.contacts)
+        ]
+        self.frees = [
+            RelaxedNonCollision(model, self.regions, v.route, per_region, self.phi_f[k])
+            for k, v in enumerate(graph.frees)
+        ]
+        cons = [cp.sum(self.phi_f[graph.starts()]) == 1]
+        r = model.finger_radius
+        for k, (v, fr) in enumerate(zip(graph.frees, self.frees)):
+            cons += fr.constraints
+            phi = self.phi_f[k]
+            if v.layer < 0:
+                cons += [
+                    phi <= self.allow[v.source],
+                    fr.pose == phi * self.start,
+                    fr.moments == phi * self.start_moments,
+                    fr.q[0] == phi * self.start_q,
+                ]
+            else:
+                cons += _on_face(model.faces[v.source], r, fr.q[0], phi)
+            cons += _on_face(model.faces[v.target], r, fr.q[-1], phi)
+        for c, rc in enumerate(self.contacts):
+            cons += rc.constraints
+            ins, outs = graph.into(c), graph.out_of(c)
+            phi = self.phi_c[c]
+            if not ins:
+                cons.append(phi == 0)
+                continue
+            cons += [
+                phi == cp.sum(self.phi_f[ins]),
+                phi == cp.sum(self.phi_f[outs]) + self.phi_t[c] if outs else phi == self.phi_t[c],
+                rc.pose(False) == sum(self.frees[f].pose for f in ins),
+                rc.pose_moments(False) == sum(self.frees[f].moments for f in ins),
+                rc.finger() == sum(self.frees[f].q[-1] for f in ins),
+                rc.pose(True) == sum((self.frees[f].pose for f in outs), self.phi_t[c] * self.goal),
+                rc.pose_moments(True) == sum((self.frees[f].moments for f in outs), self.phi_t[c] * self.goal_moments),
+            ]
+            if outs:
+                cons.append(rc.finger() == sum(self.frees[f].q[0] for f in outs))
+        self.cost = sum(rc.cost for rc in self.contacts) + sum(fr.cost for fr in self.frees)
+        self.problem = cp.Problem(cp.Minimize(self.cost), cons)
+
+    def solve(self, start_pose, start_q, goal_pose, allow) -> RelaxationResult:
+        self.start.value = pose_vector(start_pose)
+        self.start_moments.value = pose_moments(start_pose)
+        self.start_q.value = np.asarray(start_q, float)
+        self.allow.value = np.asarray(allow, float)
+        self.goal.value = pose_vector(goal_pose)
+        self.goal_moments.value = pose_moments(goal_pose)
+        t0 = time.perf_counter()
+        for attempt in range(2):  # about 1 solve in 30 raises a NumericalError that a re-solve clears
+            try:
+                self.problem.solve(solver=cp.CLARABEL)
+                break
+            except cp.error.SolverError:
+                if attempt:
+                    raise
+        dt = time.perf_counter() - t0
+        return RelaxationResult(
+            bound=float(self.problem.value),
+            status=self.problem.status,
+            solve_time_s=dt,
+            contact_flow=np.clip(self.phi_c.value, 0, 1),
+            free_flow=np.clip(self.phi_f.value, 0, 1),
+            target_flow=np.clip(self.phi_t.value, 0, 1),
+            relaxation=self,
+        )
+
+
+def _on_face(face, r, q, phi) -> list:
+    """q / phi touches the face (its finger line, within the face's span)."""
+    tq = face.t @ q
+    t0 = float(face.t @ face.a)
+    return [face.n @ q == phi * (face.offset + r), tq >= phi * t0, tq <= phi * (t0 + np.linalg.norm(face.e))]

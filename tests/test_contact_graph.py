@@ -1,0 +1,51 @@
+"""The contact graph and its free-space pieces as data (no solver)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lerobot_gcs_push.contact.graph import START, build_graph
+from lerobot_gcs_push.contact.model import PushModel
+from lerobot_gcs_push.contact.non_collision import free_regions, routes
+from lerobot_gcs_push.scene import Scene
+
+SCENE = Scene(rotates=True)
+MODEL = PushModel.from_scene(SCENE)
+
+
+def test_free_pieces_clear_the_slider_and_overlap_at_corners():
+    regions = free_regions(MODEL)
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(-3, 3, size=(4000, 2))
+    for reg in regions:
+        inside = [p for p in pts if reg.contains(p)]
+        assert len(inside) > 100
+        for p in inside:
+            assert SCENE.shape.signed_distance((0, 0, 0), p) >= SCENE.finger_radius - 1e-9
+    for i in range(4):
+        j = (i + 1) % 4
+        both = [p for p in pts if regions[i].contains(p) and regions[j].contains(p)]
+        assert both, (i, j)
+        assert not any(regions[i].contains(p) and regions[(i + 2) % 4].contains(p) for p in pts)
+
+
+def test_routes_go_round_the_near_way():
+    assert routes(4, 1, 1) == [(1,)]
+    assert routes(4, 0, 1) == [(0, 1)]
+    assert routes(4, 0, 3) == [(0, 3)]
+    assert sorted(routes(4, 0, 2)) == [(0, 1, 2), (0, 3, 2)]
+
+
+def test_layered_graph_is_acyclic_with_single_neighbours():
+    g = build_graph(MODEL, layers=3)
+    assert len(g.contacts) == 12
+    per_pair = 4 * (1 + 2 + 2)  # self, two adjacent faces, the opposite face two ways
+    assert len(g.frees) == 3 * per_pair
+    assert len(g.starts()) == per_pair
+    for f, v in enumerate(g.frees):
+        succ = g.contacts[g.successor(f)]
+        assert succ.layer == v.layer + 1 and succ.face == v.target
+        pred = g.predecessor(f)
+        assert (pred is None) == (v.layer == START)
+    assert all(g.into(c) for c in range(4))  # layer 0 is entered from the start
+    assert not g.out_of(g.contact_index(2, 0))  # the last layer only ends the plan
