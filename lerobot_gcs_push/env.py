@@ -1,14 +1,5 @@
-"""`GcsPushBox-v0`: the Gymnasium env over the Drake pushing scene.
-
-Observation (`obs_type`):
-  - "pixels_agent_pos": {"pixels": uint8 (H, W, 3) top-down image, "agent_pos": float64 (2,) finger x, y}
-  - "state": float64 (4,) = [finger x, finger y, box x, box y] (the paper's state, finger first as in
-    `agent_pos`).
-Reward: minus the box-goal distance (m); `terminated` on success, `truncated` at `max_sim_time_s`.
-Action: the absolute finger position target (x, y) in metres, held for 1/fps s of simulated time.
-Targets outside the commandable square [-finger_limit, finger_limit]^2 are clipped to it; NaN or inf
-raise ValueError (a silent clip would hide a broken policy).
-"""
+"""`GcsPushBox-v0`, `GcsPushBoxSE2-v0` and `GcsPushT-v0`: one Gymnasium env class over the Drake pushing
+scene; the ids differ only in their `Scene` (registration.py). See `GcsPushBoxEnv` for the spaces."""
 
 from __future__ import annotations
 
@@ -20,11 +11,12 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from lerobot_gcs_push.registration import ENV_ID, register_envs  # noqa: F401  (re-exported)
-from lerobot_gcs_push.scene import TASK, Disturbances, Scene, check_sampler, sample_initial_conditions
+from lerobot_gcs_push.registration import ENV_ID, SE2_ENV_ID, TEE_ENV_ID, register_envs  # noqa: F401  (re-exported)
+from lerobot_gcs_push.scene import TASK, Disturbances, Scene, check_sampler, sample_initial_conditions, wrap_angle
+from lerobot_gcs_push.shapes import SliderShape
 from lerobot_gcs_push.sim import PushSim
 
-OBS_TYPES = ("pixels_agent_pos", "state")
+OBS_TYPES = ("pixels_agent_pos", "environment_state_agent_pos", "state")
 
 # A force along +x pushes on the box's left (-x) face, and so on.
 _DIRECTIONS = (((1.0, 0.0), "left"), ((-1.0, 0.0), "right"), ((0.0, 1.0), "bottom"), ((0.0, -1.0), "top"))
@@ -34,10 +26,19 @@ _DIRECTIONS = (((1.0, 0.0), "left"), ((-1.0, 0.0), "right"), ((0.0, 1.0), "botto
 class Disturbance:
     tick: int  # onset, in ticks since the episode start
     force: tuple[float, float]  # N, on the box centre
-    face: str  # the face the force pushes on
+    face: str  # the face the force pushes on (for a rotating slider: the side of it that faces -force)
+    point: tuple[float, float] | None = None  # a rotating slider's: where the force acts, in its own frame
+    torque: float | None = None  # ... and the torque about its centroid (N*m), fixed at the onset
 
     def to_info(self, tick_s: float) -> dict:
-        return {"t": round(self.tick * tick_s, 9), "force": list(self.force), "face": self.face}
+        out = {"t": round(self.tick * tick_s, 9), "force": list(self.force), "face": self.face}
+        if self.point is not None:
+            out |= {"point": list(self.point), "torque": self.torque}
+        return out
+
+    @property
+    def wrench(self) -> tuple[float, ...]:
+        return self.force if self.torque is None else (*self.force, self.torque)
 
 
 class DisturbanceSchedule:
@@ -47,16 +48,23 @@ class DisturbanceSchedule:
     `probability_per_tick`; it pushes one of the four faces, chosen uniformly, with a magnitude uniform in
     `force_range_n`, for `duration_ticks` ticks. A new one may start while another acts (the protocol
     draws at every tick); their forces add.
+
+    With a rotating slider's `shape`, the force also twists: it acts at a point drawn uniformly (by
+    length) on the faces it pushes into (those whose outward normal opposes it) at the slider's heading
+    when drawn, and the disturbance is the constant wrench (force, torque about the centroid) it gives
+    then. The box's draws are unchanged, so are its disturbances for a seed.
     """
 
-    def __init__(self, protocol: Disturbances, rng: np.random.Generator):
+    def __init__(self, protocol: Disturbances, rng: np.random.Generator, shape: SliderShape | None = None):
         self.protocol = protocol
         self.rng = rng
+        self.shape = shape
         self.started: list[Disturbance] = []
         self._tick = 0
 
-    def forces(self, n_ticks: int) -> np.ndarray | None:
-        """Forces (n_ticks, 2) for the next `n_ticks` ticks, or None when none acts."""
+    def forces(self, n_ticks: int, heading: float = 0.0) -> np.ndarray | None:
+        """Forces (n_ticks, 2) for the next `n_ticks` ticks, or None when none acts; with a shape, wrenches
+        (n_ticks, 3) = (fx, fy, torque), those starting now placed on the slider at `heading`."""
         p = self.protocol
         start, end = self._tick, self._tick + n_ticks
         # Tick by tick, so the draws (and so the disturbances of a seed) do not depend on the env's fps.
@@ -66,18 +74,101 @@ class DisturbanceSchedule:
             if self.rng.random() < p.probability_per_tick:
                 magnitude = self.rng.uniform(*p.force_range_n)
                 (dx, dy), face = _DIRECTIONS[self.rng.integers(len(_DIRECTIONS))]
-                self.started.append(Disturbance(tick, (magnitude * dx, magnitude * dy), face))
+                force = (magnitude * dx, magnitude * dy)
+                if self.shape is None:
+                    self.started.append(Disturbance(tick, force, face))
+                else:
+                    point = self._point_pushed(np.array([dx, dy]), heading)
+                    c, s = math.cos(heading), math.sin(heading)
+                    r = (c * point[0] - s * point[1], s * point[0] + c * point[1])
+                    torque = r[0] * force[1] - r[1] * force[0]
+                    self.started.append(Disturbance(tick, force, face, point, float(torque)))
+        width = 2 if self.shape is None else 3
         out = None
         for d in self.started:
             lo, hi = max(d.tick, start), min(d.tick + p.duration_ticks, end)
             if lo < hi:
-                out = np.zeros((n_ticks, 2)) if out is None else out
-                out[lo - start : hi - start] += d.force
+                out = np.zeros((n_ticks, width)) if out is None else out
+                out[lo - start : hi - start] += d.wrench
         self._tick = end
         return out
 
+    def _point_pushed(self, direction: np.ndarray, heading: float) -> tuple[float, float]:
+        """A point, uniform by length, on the faces that `direction` (world) pushes into, in the slider's
+        frame."""
+        local = np.array(
+            [
+                math.cos(heading) * direction[0] + math.sin(heading) * direction[1],
+                -math.sin(heading) * direction[0] + math.cos(heading) * direction[1],
+            ]
+        )
+        faces = [(a, b) for a, b, normal in self.shape.faces() if normal @ local < -1e-9]
+        lengths = np.array([np.linalg.norm(b - a) for a, b in faces])
+        u = self.rng.uniform(0.0, lengths.sum())
+        i = min(int(np.searchsorted(np.cumsum(lengths), u)), len(faces) - 1)
+        a, b = faces[i]
+        t = (u - (lengths[:i].sum())) / lengths[i]
+        return tuple(float(v) for v in a + np.clip(t, 0.0, 1.0) * (b - a))
+
 
 class GcsPushBoxEnv(gym.Env):
+    """A finger pushes a slider on a plane, in Drake, to a goal: the paper's box that cannot turn
+    (`GcsPushBox-v0`), a box that turns (`GcsPushBoxSE2-v0`) or gym-pusht's T (`GcsPushT-v0`).
+
+    ## Description
+    A sphere finger under a PID controller pushes a slider resting on damped joints (quasi-static ground
+    friction: pushed, it moves; released, it stops). The registered ids differ only in their `Scene`
+    (`slider`, `rotates`, `goal_heading`); every dimension, gain and rule comes from it.
+
+    ## Action Space
+    `Box(-finger_limit, finger_limit, (2,), float64)`: the absolute finger target (x, y) in metres, held
+    for 1/fps s of simulated time. Targets outside the box are clipped to it; NaN or inf raise ValueError
+    (a silent clip would hide a broken policy).
+
+    ## Observation Space (`obs_type`)
+    - "pixels_agent_pos" (default): {"pixels": uint8 (H, W, 3) top-down image with the goal drawn (a
+      filled square for the box that cannot turn, the goal pose's outline for a rotating slider),
+      "agent_pos": float64 (2,) finger x, y}.
+    - "environment_state_agent_pos": {"environment_state": float64 (3,) slider [x, y, heading] (heading
+      in [-pi, pi), 0 for the box that cannot turn), "agent_pos"}.
+    - "state": float64 (4,) [finger x, finger y, box x, box y] (the paper's state); for a rotating slider
+      (5,) [finger x, finger y, slider x, slider y, heading].
+
+    ## Rewards
+    The box that cannot turn: minus the box-goal distance (m). A rotating slider: gym-pusht's
+    min(coverage / success_coverage, 1), coverage being the share of the goal outline's area it covers.
+
+    ## Success Criteria
+    `info["is_success"]`: the box centre within `success_threshold` m of the goal; a rotating slider
+    covers at least `success_coverage` (0.95, gym-pusht's rule) of the goal outline's area.
+
+    ## Starting State
+    Sampled by `scene.sample_initial_conditions` with `sampler` from the env's seed: the slider's centre
+    uniform over [-box_init_half_width, box_init_half_width]^2, the finger's over
+    [-finger_init_half_width, finger_init_half_width]^2, a rotating slider's heading uniform in [-pi, pi),
+    redrawn until finger and slider do not overlap (Drake's query). `reset(options={"box": [x, y],
+    "finger": [x, y], "heading": radians})` sets it instead (heading defaults to 0).
+
+    ## Episode End
+    `terminated` on success, `truncated` after `max_sim_time_s` of simulated time.
+
+    ## Info
+    Always: `is_success`, `box_goal_distance` (m), `box` (slider x, y), `finger`, `sim_time_s`,
+    `disturbances`, `goal` (x, y). A rotating slider adds `coverage`, `position_error` (m, = the
+    distance), `heading_error` (radians, wrapped to [-pi, pi)), `heading`, `slider_pose` (x, y, heading)
+    and `goal_pose`.
+
+    ## Arguments
+    `obs_type`, `fps` (env steps per simulated second), `max_sim_time_s`, `disturbances` (the paper's
+    random pushes; a rotating slider's also twist it, see `DisturbanceSchedule`), `image_size`,
+    `success_threshold` (m), `success_coverage`, `goal` ((x, y), or (x, y, heading) for a rotating
+    slider), `render_mode` ("rgb_array"), `scene` (default: the registered id's), `sampler` ("uniform",
+    "sobol", "hard": the box only), `render_size` (of `render()`).
+
+    ## Version History
+    - v0: the paper's box; the SE(2) box and the T added with rotation (issue 32).
+    """
+
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
     # lerobot-eval asks every sub-env for both (a missing attribute kills an AsyncVectorEnv worker).
     task = task_description = TASK
@@ -95,6 +186,7 @@ class GcsPushBoxEnv(gym.Env):
         scene: Scene | None = None,
         sampler: str = "uniform",
         render_size: int | tuple[int, int] = 384,
+        success_coverage: float | None = None,
     ):
         if obs_type not in OBS_TYPES:
             raise ValueError(f"obs_type must be one of {OBS_TYPES}, got {obs_type!r}")
@@ -104,14 +196,19 @@ class GcsPushBoxEnv(gym.Env):
         if not max_sim_time_s > 0:
             raise ValueError(f"max_sim_time_s must be positive, got {max_sim_time_s}")
         scene = scene if scene is not None else Scene()
+        if sampler == "hard" and scene.rotates:
+            raise ValueError("sampler 'hard' is for the box that cannot rotate: choose 'uniform' or 'sobol'")
         if goal is not None:
             scene = scene.with_goal(goal)
         if success_threshold is not None:
             scene = dataclasses.replace(scene, success_threshold=float(success_threshold))
+        if success_coverage is not None:
+            scene = dataclasses.replace(scene, success_coverage=float(success_coverage))
         rows, cols = _size(image_size)
         scene = dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, height=rows, width=cols))
         self.scene, self.obs_type, self.fps, self.sampler = scene, obs_type, fps, sampler
         self.max_sim_time_s, self.disturbances, self.render_mode = max_sim_time_s, disturbances, render_mode
+        self.task = self.task_description = scene.task
         self.sim = PushSim(scene, render_size=_size(render_size))
         self._dt = 1.0 / fps
         self.sim.steps_in(self._dt)  # raises unless 1/fps is a whole number of disturbance ticks
@@ -125,8 +222,13 @@ class GcsPushBoxEnv(gym.Env):
         # pushed or knocked past its workspace: the view edge bounds the finger, nothing bounds the box.
         agent = spaces.Box(-scene.view_half_width, scene.view_half_width, shape=(2,), dtype=np.float64)
         if obs_type == "state":
-            high = np.array([scene.view_half_width] * 2 + [np.inf] * 2)
+            high = np.array([scene.view_half_width] * 2 + [np.inf] * 2 + [math.pi] * scene.rotates)
             self.observation_space = spaces.Box(-high, high, dtype=np.float64)
+        elif obs_type == "environment_state_agent_pos":
+            high = np.array([np.inf, np.inf, math.pi])
+            self.observation_space = spaces.Dict(
+                {"environment_state": spaces.Box(-high, high, dtype=np.float64), "agent_pos": agent}
+            )
         else:
             self.observation_space = spaces.Dict(
                 {
@@ -139,9 +241,11 @@ class GcsPushBoxEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        if options and ("box" in options or "finger" in options):
-            box, finger = self.scene.validate_state(options.get("box"), options.get("finger"))
-            if self.sim.collides(box, finger):
+        if options and ("box" in options or "finger" in options or "heading" in options):
+            heading = options.get("heading", 0.0)
+            box, finger = self.scene.validate_state(options.get("box"), options.get("finger"), heading=heading)
+            heading = float(heading)
+            if self.sim.collides(box, finger, heading):
                 raise ValueError(
                     f"initial condition: finger {finger.tolist()} overlaps the box {box.tolist()} "
                     f"(Drake's collision query)"
@@ -154,10 +258,13 @@ class GcsPushBoxEnv(gym.Env):
                 sampler=self.sampler,
                 collides=self.sim.collides,
             )[0]
-            box, finger = np.array(ic.box), np.array(ic.finger)
-        self.sim.reset(box, finger)
+            box, finger, heading = np.array(ic.box), np.array(ic.finger), ic.heading or 0.0
+        self.sim.reset(box, finger, heading)
         self._steps = 0
-        self._schedule = DisturbanceSchedule(self.scene.disturbances, self.np_random) if self.disturbances else None
+        twist = self.scene.shape if self.scene.rotates else None  # a rotating slider's pushes also twist it
+        self._schedule = (
+            DisturbanceSchedule(self.scene.disturbances, self.np_random, twist) if self.disturbances else None
+        )
         return self._observation(), self._info()
 
     def step(self, action):
@@ -167,27 +274,40 @@ class GcsPushBoxEnv(gym.Env):
         if not np.all(np.isfinite(target)):
             raise ValueError(f"action must be finite, got {target.tolist()} (NaN or inf)")
         lim = self.scene.finger_limit
-        forces = self._schedule.forces(self._ticks_per_step) if self._schedule is not None else None
+        forces = None
+        if self._schedule is not None:
+            forces = self._schedule.forces(self._ticks_per_step, self.sim.box_heading())
         self.sim.step(np.clip(target, -lim, lim), self._dt, forces)
         self._steps += 1
         info = self._info()
         truncated = self._steps >= self._max_episode_steps
-        return self._observation(), -info["box_goal_distance"], info["is_success"], truncated, info
+        if self.scene.rotates:
+            reward = min(info["coverage"] / self.scene.success_coverage, 1.0)
+        else:
+            reward = -info["box_goal_distance"]
+        return self._observation(), reward, info["is_success"], truncated, info
 
     def render(self):
         return self.sim.render_image()
 
+    def _slider_pose(self) -> np.ndarray:
+        """[x, y, heading], the heading wrapped to [-pi, pi)."""
+        return np.array([*self.sim.box_position(), wrap_angle(self.sim.box_heading())])
+
     def _observation(self):
-        finger, box = self.sim.finger_position(), self.sim.box_position()
+        finger = self.sim.finger_position()
         if self.obs_type == "state":
-            return np.concatenate([finger, box])
+            slider = self._slider_pose() if self.scene.rotates else self.sim.box_position()
+            return np.concatenate([finger, slider])
+        if self.obs_type == "environment_state_agent_pos":
+            return {"environment_state": self._slider_pose(), "agent_pos": finger}
         return {"pixels": self.sim.image(), "agent_pos": finger}
 
     def _info(self) -> dict:
         box = self.sim.box_position()
         distance = self.scene.box_goal_distance(box)
         tick_s = self.scene.disturbances.tick_s
-        return {
+        info = {
             "is_success": bool(distance <= self.scene.success_threshold),
             "box_goal_distance": distance,
             "box": box,
@@ -196,6 +316,19 @@ class GcsPushBoxEnv(gym.Env):
             "disturbances": [d.to_info(tick_s) for d in self._schedule.started] if self._schedule else [],
             "goal": self.scene.goal_array,
         }
+        if self.scene.rotates:
+            pose = self._slider_pose()
+            coverage = self.scene.coverage(pose)
+            info |= {
+                "is_success": bool(coverage >= self.scene.success_coverage),
+                "coverage": coverage,
+                "position_error": distance,
+                "heading_error": self.scene.heading_error(pose[2]),
+                "heading": float(pose[2]),
+                "slider_pose": pose,
+                "goal_pose": self.scene.goal_pose,
+            }
+        return info
 
 
 def _size(size) -> tuple[int, int]:

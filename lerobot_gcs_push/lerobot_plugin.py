@@ -1,10 +1,11 @@
-"""LeRobot env config `gcs_push`: `lerobot-train` / `lerobot-eval --env.type=gcs_push`.
+"""LeRobot env configs: `lerobot-train` / `lerobot-eval --env.type=gcs_push` (the box, `GcsPushBox-v0`),
+`gcs_push_se2` (the rotating box, `GcsPushBoxSE2-v0`) and `gcs_push_t` (the T, `GcsPushT-v0`).
 
-LeRobot 0.6.1 finds it through the `lerobot_env_gcs_push` shim (imported for every installed
+LeRobot 0.6.1 finds them through the `lerobot_env_gcs_push` shim (imported for every installed
 distribution named `lerobot_env_*`), which imports this module.
 
-The env config names the package's one gym id, `GcsPushBox-v0`: lerobot-eval's async vector env builds
-each env in a forkserver worker that unpickles this config, which imports the package and so registers it.
+Each config names one of the package's gym ids: lerobot-eval's async vector env builds each env in a
+forkserver worker that unpickles the config, which imports the package and so registers the ids.
 """
 
 from dataclasses import dataclass, field
@@ -13,7 +14,7 @@ from lerobot.configs import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
 from lerobot.utils.constants import ACTION, OBS_IMAGE, OBS_STATE
 
-from lerobot_gcs_push.registration import ENV_ID
+from lerobot_gcs_push.registration import ENV_ID, SE2_ENV_ID, TEE_ENV_ID
 from lerobot_gcs_push.scene import Scene
 
 
@@ -64,3 +65,28 @@ class GcsPushEnvConfig(EnvConfig):
             "max_sim_time_s": self.episode_length / self.fps,
             "max_episode_steps": self.episode_length,
         }
+
+
+@dataclass
+class _RotatingSliderConfig(GcsPushEnvConfig):
+    """A rotating slider succeeds by coverage of the goal outline, not by a distance: the env gets
+    `success_coverage` and keeps its scene's distance threshold (which it does not use)."""
+
+    success_coverage: float = Scene.success_coverage  # share of the goal outline's area covered
+
+    @property
+    def gym_kwargs(self) -> dict:
+        kwargs = {k: v for k, v in super().gym_kwargs.items() if k != "success_threshold"}
+        return {**kwargs, "success_coverage": self.success_coverage}
+
+
+@EnvConfig.register_subclass("gcs_push_se2")
+@dataclass
+class GcsPushSE2EnvConfig(_RotatingSliderConfig):
+    task: str | None = SE2_ENV_ID
+
+
+@EnvConfig.register_subclass("gcs_push_t")
+@dataclass
+class GcsPushTEnvConfig(_RotatingSliderConfig):
+    task: str | None = TEE_ENV_ID

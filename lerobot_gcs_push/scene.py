@@ -12,6 +12,7 @@ import dataclasses
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -76,6 +77,7 @@ class Scene:
     goal_heading: float = 0.0  # radians, the goal pose's heading (a rotating slider only)
     # The limit surface's torque scale, tau_max = f_max * c * r_max (the reference uses c = 0.3-0.6).
     limit_surface_c: float = 0.6
+    success_coverage: float = 0.95  # a rotating slider succeeds when it covers this share of the goal outline
     camera: Camera = field(default_factory=Camera)
     disturbances: Disturbances = field(default_factory=Disturbances)
 
@@ -97,9 +99,14 @@ class Scene:
             raise ValueError(f"Scene.goal must be two finite numbers, got {self.goal!r}")
         if np.max(np.abs(self.goal)) > self.box_limit:
             raise ValueError(f"Scene.goal {self.goal} lies outside the box's region |x|,|y| <= {self.box_limit}")
+        if not math.isfinite(self.goal_heading):
+            raise ValueError(f"Scene.goal_heading must be finite, got {self.goal_heading!r}")
+        if not 0 < self.success_coverage <= 1:
+            raise ValueError(f"Scene.success_coverage must be in (0, 1], got {self.success_coverage!r}")
+        self.shape  # noqa: B018  (an unknown slider fails here, not at the first use)
 
     # Derived quantities: computed here once so that no module re-derives them differently.
-    @property
+    @cached_property
     def shape(self) -> SliderShape:
         if self.slider == "box":
             return square(self.box_size)
@@ -142,12 +149,28 @@ class Scene:
     def box_reach(self) -> float:
         """Box centres the finger can still push from every face: a replanning expert may meet a box that
         a disturbance knocked past the sampling region, and the planner accepts it up to here."""
-        return self.finger_limit - self.approach_distance
+        return self.finger_limit - (self.slider_extent + self.finger_radius + self.transition_buffer)
 
     @property
     def finger_limit(self) -> float:
         """Finger commands are clipped to [-finger_limit, finger_limit]^2."""
-        return self.box_limit + self.box_half + 2 * self.finger_radius + self.finger_margin
+        return self.box_limit + self.slider_extent + 2 * self.finger_radius + self.finger_margin
+
+    @property
+    def slider_extent(self) -> float:
+        """How far the slider reaches from its centre towards a wall of the workspace.
+
+        The box that cannot turn reaches half its side (the paper's workspace, unchanged). A slider that
+        turns may point its farthest outline point (r_max) at any wall, so the workspace grows with it: the
+        slider's sampling region stays `box_init_half_width` and the finger's region grows around it, so
+        that the finger can still pass around a slider at the region's edge at any heading. The other way
+        (shrinking the sampling region to keep the view) would give the T less room than the box to move.
+        """
+        if self.slider == "box" and not self.rotates:
+            return self.box_half
+        if self.rotates:
+            return self.shape.r_max
+        return float(np.max(np.abs(np.asarray(self.shape.outline))))
 
     @property
     def view_half_width(self) -> float:
@@ -158,23 +181,62 @@ class Scene:
     def goal_array(self) -> np.ndarray:
         return np.asarray(self.goal, dtype=float)
 
+    @property
+    def goal_pose(self) -> np.ndarray:
+        """The goal as (x, y, heading)."""
+        return np.array([*self.goal, self.goal_heading], dtype=float)
+
+    @property
+    def task(self) -> str:
+        """The language instruction stored with every frame."""
+        if not self.rotates:
+            return TASK
+        return f"Push the red {'T' if self.slider == 'tee' else 'box'} onto the green outline."
+
     def with_goal(self, goal) -> Scene:
+        """The scene with goal (x, y), or (x, y, heading) for a rotating slider."""
+        if len(goal) == 3:
+            if not self.rotates:
+                raise ValueError(f"a goal heading needs a rotating slider, got goal {list(goal)}")
+            return dataclasses.replace(self, goal=(float(goal[0]), float(goal[1])), goal_heading=float(goal[2]))
         return dataclasses.replace(self, goal=(float(goal[0]), float(goal[1])))
 
     # Geometry shared by the planner, the env's input checks and the tests.
-    def finger_box_gap(self, box, finger) -> float:
-        """Signed distance between the finger sphere and the box (negative when they overlap)."""
+    def finger_box_gap(self, box, finger, heading: float = 0.0) -> float:
+        """Signed distance between the finger sphere and the slider at (box, heading) (negative when they
+        overlap)."""
+        if self.slider != "box" or heading != 0.0:
+            return self.shape.signed_distance((box[0], box[1], heading), finger) - self.finger_radius
         d = np.abs(np.asarray(finger, float) - np.asarray(box, float)) - self.box_half
         outside = np.linalg.norm(np.maximum(d, 0.0))
         inside = min(max(d[0], d[1]), 0.0)
         return float(outside + inside - self.finger_radius)
 
+    def coverage(self, pose) -> float:
+        """Share of the goal outline's area the slider at pose (x, y, heading) covers."""
+        return self.shape.coverage(pose, self.goal_pose)
+
+    def heading_error(self, heading: float) -> float:
+        """heading - goal_heading, wrapped to [-pi, pi)."""
+        return wrap_angle(heading - self.goal_heading)
+
     def validate_state(
-        self, box, finger, *, what: str = "initial condition", box_limit: float | None = None
+        self,
+        box,
+        finger,
+        *,
+        heading: float = 0.0,
+        what: str = "initial condition",
+        box_limit: float | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Return (box, finger) as arrays, or raise a ValueError that names the violation."""
+        """Return (box, finger) as arrays, or raise a ValueError that names the violation. `heading` is the
+        slider's (radians; only a rotating slider may have one other than 0)."""
         box = _vector2(box, f"{what}: box")
         finger = _vector2(finger, f"{what}: finger")
+        if not _is_finite_number(heading):
+            raise ValueError(f"{what}: heading must be a finite number of radians, got {heading!r}")
+        if heading != 0.0 and not self.rotates:
+            raise ValueError(f"{what}: heading {heading} given, but this scene's slider cannot rotate")
         box_limit = self.box_limit if box_limit is None else box_limit
         if np.max(np.abs(box)) > box_limit + 1e-9:
             raise ValueError(f"{what}: box {box.tolist()} lies outside the box workspace |x|,|y| <= {box_limit}")
@@ -182,7 +244,7 @@ class Scene:
             raise ValueError(
                 f"{what}: finger {finger.tolist()} lies outside the finger workspace |x|,|y| <= {self.finger_limit}"
             )
-        gap = self.finger_box_gap(box, finger)
+        gap = self.finger_box_gap(box, finger, float(heading))
         if gap < -1e-9:  # touching counts as valid, whatever the rounding of box - contact distance
             raise ValueError(
                 f"{what}: finger {finger.tolist()} overlaps the box {box.tolist()} (penetration {-gap:.3f} m)"
@@ -191,6 +253,18 @@ class Scene:
 
     def box_goal_distance(self, box) -> float:
         return float(np.linalg.norm(np.asarray(box, float) - self.goal_array))
+
+
+def _is_finite_number(value) -> bool:
+    try:
+        return math.isfinite(float(value))
+    except (TypeError, ValueError):
+        return False
+
+
+def wrap_angle(angle: float) -> float:
+    """The angle in [-pi, pi)."""
+    return float((angle + math.pi) % (2 * math.pi) - math.pi)
 
 
 def _vector2(value, what: str) -> np.ndarray:
@@ -218,9 +292,12 @@ class InitialCondition:
     box: tuple[float, float]
     finger: tuple[float, float]
     kind: str = ""  # which family of the hard sampler drew it ("" for the space-filling samplers)
+    heading: float | None = None  # the slider's, radians; None for a slider that cannot rotate
 
     def to_json(self) -> dict:
         out = {"box": list(self.box), "finger": list(self.finger)}
+        if self.heading is not None:
+            out["heading"] = self.heading
         if self.kind:
             out["kind"] = self.kind
         return out
@@ -240,13 +317,21 @@ def sample_initial_conditions(
     `hard` draws, in turn, the configurations a behaviour-cloned policy gets wrong (see `_hard_point`).
     `collides(box, finger)` defaults to the exact sphere-box distance; the env passes Drake's query.
     The i-th condition depends only on the seed and i, so a prefix of a longer list is the shorter list.
+
+    A rotating slider (`scene.rotates`) adds a fifth coordinate, its heading, uniform in [-pi, pi) (from
+    the same Sobol or uniform stream), and `collides(box, finger, heading)` gets it. The hard families
+    are the box's (they align the finger with axis-aligned faces) and refuse a rotating slider.
     """
     if n < 0:
         raise ValueError(f"number of initial conditions must be >= 0, got {n}")
     check_sampler(sampler)
     if collides is None:
-        collides = lambda b, f: scene.finger_box_gap(b, f) < 0  # noqa: E731
+        collides = lambda b, f, h=0.0: scene.finger_box_gap(b, f, h) < 0  # noqa: E731
     out: list[InitialCondition] = []
+    if sampler == "hard" and scene.rotates:
+        raise ValueError(
+            "the 'hard' sampler's families are for the box that cannot rotate: choose 'sobol' or 'uniform'"
+        )
     if sampler == "hard":
         for i in range(n):
             rng = np.random.default_rng([seed, i])
@@ -257,12 +342,18 @@ def sample_initial_conditions(
                     break
             out.append(InitialCondition(tuple(map(float, box)), tuple(map(float, finger)), kind))
         return out
-    for point in _unit_points(sampler, seed):
+    for point in _unit_points(sampler, seed, 5 if scene.rotates else 4):
         box = (2 * point[:2] - 1) * scene.box_init_half_width
-        finger = (2 * point[2:] - 1) * scene.finger_init_half_width
-        if collides(box, finger):
+        finger = (2 * point[2:4] - 1) * scene.finger_init_half_width
+        if scene.rotates:
+            heading = float(2 * math.pi * point[4] - math.pi)
+            if collides(box, finger, heading):
+                continue
+            out.append(InitialCondition(tuple(map(float, box)), tuple(map(float, finger)), heading=heading))
+        elif collides(box, finger):
             continue
-        out.append(InitialCondition(tuple(map(float, box)), tuple(map(float, finger))))
+        else:
+            out.append(InitialCondition(tuple(map(float, box)), tuple(map(float, finger))))
         if len(out) == n:
             break
     return out
@@ -317,7 +408,8 @@ def episode_seed(seed: int, index: int) -> int:
 
 
 def load_initial_conditions(path) -> list[dict]:
-    """A JSON list of {"box": [x, y], "finger": [x, y]} (other keys kept), with errors that name the entry."""
+    """A JSON list of {"box": [x, y], "finger": [x, y]} and, for a rotating slider, "heading" (radians; a
+    file without it means heading 0), other keys kept, with errors that name the entry."""
     import json
 
     try:
@@ -341,18 +433,25 @@ def load_initial_conditions(path) -> list[dict]:
             raise ValueError(
                 f'{str(path)!r} entry {i} must be {{"box": [x, y], "finger": [x, y]}}, got {item!r}'
             ) from None
-        out.append({**item, "box": box, "finger": finger})
+        entry = {**item, "box": box, "finger": finger}
+        if "heading" in item:
+            if isinstance(item["heading"], bool) or not _is_finite_number(item["heading"]):
+                raise ValueError(
+                    f'{str(path)!r} entry {i}: "heading" must be a finite number of radians, got {item["heading"]!r}'
+                )
+            entry["heading"] = float(item["heading"])
+        out.append(entry)
     return out
 
 
-def _unit_points(sampler: str, seed: int) -> Iterator[np.ndarray]:
+def _unit_points(sampler: str, seed: int, dims: int) -> Iterator[np.ndarray]:
     if sampler == "uniform":
         rng = np.random.default_rng(seed)
         while True:
-            yield rng.random(4)
+            yield rng.random(dims)
     else:
         from scipy.stats import qmc
 
-        engine = qmc.Sobol(d=4, scramble=True, rng=np.random.default_rng(seed))
+        engine = qmc.Sobol(d=dims, scramble=True, rng=np.random.default_rng(seed))
         while True:
             yield from engine.random(64)

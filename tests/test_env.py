@@ -56,7 +56,8 @@ def test_check_env_passes(obs_type):
 def test_the_registered_id_makes_the_env_without_time_limit():
     register_envs()  # idempotent
     register_envs()
-    assert [i for i in gym.registry if "GcsPushBox" in i] == [ENV_ID]  # one id, one registration
+    # one registration per id: the box, and the rotating box and T beside it
+    assert [i for i in gym.registry if i.startswith("GcsPush")] == [ENV_ID, "GcsPushBoxSE2-v0", "GcsPushT-v0"]
     e = gym.make(ENV_ID, max_sim_time_s=0.3, render_size=96)
     assert isinstance(e.unwrapped, GcsPushBoxEnv)
     assert e.get_wrapper_attr("_max_episode_steps") == 3

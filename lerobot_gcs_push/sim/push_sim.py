@@ -1,10 +1,12 @@
 """The Drake diagram of the pushing scene (paper section III-C).
 
-A discrete MultibodyPlant (`plant.add_scene_plant`) holds a non-rotating box on two damped prismatic joints
-and a sphere finger on two actuated prismatic joints. The finger follows a commanded position through the
-paper's low-level controller: `StateInterpolatorWithDiscreteDerivative` -> `InverseDynamicsController`
-(PID) built on a finger-only control plant. A force disturbance can be applied at the box centre, and a
-top-down `RgbdSensor` (`camera.TopDownCamera`) renders the image. Every number comes from `scene.Scene`.
+A discrete MultibodyPlant (`plant.add_scene_plant`) holds the slider on two damped prismatic joints (and,
+when it rotates, a damped yaw joint) and a sphere finger on two actuated prismatic joints. The finger
+follows a commanded position through the paper's low-level controller:
+`StateInterpolatorWithDiscreteDerivative` -> `InverseDynamicsController` (PID) built on a finger-only
+control plant. A force disturbance can be applied at the slider's centre (with a torque about it when the
+slider rotates), and a top-down `RgbdSensor` (`camera.TopDownCamera`) renders the image. Every number
+comes from `scene.Scene`.
 
 The diagram is built once per `PushSim`; `reset` only rewrites the context, so thousands of episodes can
 reuse it.
@@ -29,7 +31,7 @@ _OBS_RENDERER = "vtk_obs"
 _RENDER_RENDERER = "vtk_render"
 # The diagram's exported inputs.
 _COMMAND_INPUT = "finger_command"  # the finger's commanded (x, y)
-_FORCE_INPUT = "applied_force"  # generalized forces on the plant's four velocities
+_FORCE_INPUT = "applied_force"  # generalized forces on the plant's velocities
 
 
 class PushSim:
@@ -99,8 +101,11 @@ class PushSim:
 
         # Fixed input values are rewritten in place (GetMutableData also invalidates dependents).
         self._command_port = self.diagram.GetInputPort(_COMMAND_INPUT).FixValue(self._context, np.zeros(2))
-        self._force_port = self.diagram.GetInputPort(_FORCE_INPUT).FixValue(self._context, np.zeros(4))
-        self._force_buf = np.zeros(4)
+        nv = self.plant.num_velocities()
+        self._force_port = self.diagram.GetInputPort(_FORCE_INPUT).FixValue(self._context, np.zeros(nv))
+        self._force_buf = np.zeros(nv)
+        # Generalized-force slots of one disturbance row: (fx, fy) on the slider's centre, then its torque.
+        self._wrench_index = model.v_box + ([] if model.v_yaw is None else [model.v_yaw])
         self._force_nonzero = False
         # Reset restores the state only: copying the whole context would also copy SceneGraph's
         # parameters, which hold the render engines (milliseconds per reset).
@@ -114,14 +119,15 @@ class PushSim:
         self.reset(np.array([0.0, 0.0]), np.array([0.0, -scene.finger_limit]))
 
     # --- state -------------------------------------------------------------------------------------
-    def reset(self, box, finger) -> None:
-        """Place box and finger at rest at t = 0; the controller then holds the finger where it is."""
+    def reset(self, box, finger, heading: float = 0.0) -> None:
+        """Place slider (at box, heading) and finger at rest at t = 0; the controller then holds the finger
+        where it is."""
         finger = np.asarray(finger, dtype=float)
         self._context.SetTime(0.0)
         self._context.SetContinuousState(self._default_xc)
         self._context.get_mutable_discrete_state().SetFrom(self._default_xd)
         self._context.get_mutable_abstract_state().SetFrom(self._default_xa)
-        self.plant.SetPositions(self._plant_context, self._model.positions(box, finger))
+        self.plant.SetPositions(self._plant_context, self._model.positions(box, finger, heading))
         self._interpolator.set_initial_position(self._interp_context, finger)
         self._controller.set_integral_value(self._controller_context, np.zeros(2))
         self._command_port.GetMutableData().get_mutable_value().set_value(finger)
@@ -133,7 +139,8 @@ class PushSim:
         """Hold the finger command for `duration_s` of simulated time.
 
         `forces` is None (no disturbance) or an array (n_ticks, 2) in N of the force on the box centre
-        during each disturbance tick (`scene.disturbances.tick_s`) of this step.
+        during each disturbance tick (`scene.disturbances.tick_s`) of this step; for a rotating slider,
+        (n_ticks, 3): the world force (N) on its centroid and the torque (N*m) about it.
         """
         n_steps = self.steps_in(duration_s)
         self._command_port.GetMutableData().get_mutable_value().set_value(np.asarray(command_xy, dtype=float))
@@ -144,8 +151,9 @@ class PushSim:
             self._simulator.AdvanceTo(self._step_count * dt)
             return
         forces = np.asarray(forces, dtype=float)
-        if forces.shape != (n_steps // self._steps_per_tick, 2):
-            raise ValueError(f"forces must have shape ({n_steps // self._steps_per_tick}, 2), got {forces.shape}")
+        expected = (n_steps // self._steps_per_tick, len(self._wrench_index))
+        if forces.shape != expected:
+            raise ValueError(f"forces must have shape {expected}, got {forces.shape}")
         # Advance once per run of equal forces: most ticks carry no disturbance.
         start = 0
         while start < len(forces):
@@ -169,11 +177,11 @@ class PushSim:
     def _set_force(self, force) -> None:
         if force is None or not np.any(force):
             if self._force_nonzero:
-                self._force_port.GetMutableData().get_mutable_value().set_value(np.zeros(4))
+                self._force_port.GetMutableData().get_mutable_value().set_value(np.zeros_like(self._force_buf))
                 self._force_nonzero = False
             return
         self._force_buf[:] = 0.0
-        self._force_buf[self._model.v_box] = force
+        self._force_buf[self._wrench_index] = force
         self._force_port.GetMutableData().get_mutable_value().set_value(self._force_buf)
         self._force_nonzero = True
 
@@ -184,20 +192,41 @@ class PushSim:
     def box_position(self) -> np.ndarray:
         return self.plant.GetPositions(self._plant_context)[self._model.q_box]
 
+    def box_heading(self) -> float:
+        """The slider's yaw joint angle (radians, not wrapped); 0 for a slider that cannot rotate."""
+        if self._model.q_yaw is None:
+            return 0.0
+        return float(self.plant.GetPositions(self._plant_context)[self._model.q_yaw])
+
     def finger_position(self) -> np.ndarray:
         return self.plant.GetPositions(self._plant_context)[self._model.q_finger]
 
     def box_pose(self) -> RigidTransform:
         return self.plant.EvalBodyPoseInWorld(self._plant_context, self._model.box_body)
 
-    # --- geometry ------------------------------------------------------------------------------------
-    def signed_distance(self, box, finger) -> float:
-        """`CollisionQuery.signed_distance`: finger-box distance at the given positions (< 0: overlap)."""
-        return self._collision.signed_distance(box, finger)
+    def contact_wrench(self) -> np.ndarray:
+        """The finger's contact force on the slider (world, N) and its torque about the slider's centre
+        (N*m), as the plant's next step applies them: [fx, fy, tau], zero when they do not touch."""
+        results = self.plant.get_contact_results_output_port().Eval(self._plant_context)
+        slider = self._model.box_body.index()
+        centre = self.box_pose().translation()
+        out = np.zeros(3)
+        for i in range(results.num_point_pair_contacts()):
+            info = results.point_pair_contact_info(i)
+            # contact_force() acts on body B; the slider is one of the pair.
+            f = info.contact_force() if info.bodyB_index() == slider else -info.contact_force()
+            r = info.contact_point() - centre
+            out += [f[0], f[1], r[0] * f[1] - r[1] * f[0]]
+        return out
 
-    def collides(self, box, finger) -> bool:
-        """`CollisionQuery.collides`: whether finger and box interpenetrate (touching is allowed)."""
-        return self._collision.collides(box, finger)
+    # --- geometry ------------------------------------------------------------------------------------
+    def signed_distance(self, box, finger, heading: float = 0.0) -> float:
+        """`CollisionQuery.signed_distance`: finger-slider distance at the given poses (< 0: overlap)."""
+        return self._collision.signed_distance(box, finger, heading)
+
+    def collides(self, box, finger, heading: float = 0.0) -> bool:
+        """`CollisionQuery.collides`: whether finger and slider interpenetrate (touching is allowed)."""
+        return self._collision.collides(box, finger, heading)
 
     # --- images --------------------------------------------------------------------------------------
     def image(self) -> np.ndarray:
