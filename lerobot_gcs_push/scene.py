@@ -104,6 +104,9 @@ class Scene:
         if not 0 < self.success_coverage <= 1:
             raise ValueError(f"Scene.success_coverage must be in (0, 1], got {self.success_coverage!r}")
         self.shape  # noqa: B018  (an unknown slider fails here, not at the first use)
+        if self.slider != "box" and not self.rotates:
+            # Only the box has the paper's convex simplification (and its filled goal square).
+            raise ValueError(f"Scene.slider {self.slider!r} must rotate: set rotates=True")
 
     # Derived quantities: computed here once so that no module re-derives them differently.
     @cached_property
@@ -166,11 +169,7 @@ class Scene:
         that the finger can still pass around a slider at the region's edge at any heading. The other way
         (shrinking the sampling region to keep the view) would give the T less room than the box to move.
         """
-        if self.slider == "box" and not self.rotates:
-            return self.box_half
-        if self.rotates:
-            return self.shape.r_max
-        return float(np.max(np.abs(np.asarray(self.shape.outline))))
+        return self.shape.r_max if self.rotates else self.box_half
 
     @property
     def view_half_width(self) -> float:

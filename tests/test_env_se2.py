@@ -69,6 +69,12 @@ def test_registered_scenes_and_workspace():
     assert e.scene.finger_limit == pytest.approx(4.5 + r_max + 2 * 0.3 + 0.4)
     assert e.scene.box_reach == pytest.approx(e.scene.finger_limit - (r_max + 0.3 + 0.2))
     np.testing.assert_allclose(e.action_space.high, e.scene.finger_limit)
+    with pytest.raises(ValueError, match="must rotate"):
+        Scene(slider="tee")
+    with pytest.raises(ValueError, match="unknown slider"):
+        Scene(slider="disc", rotates=True)
+    with pytest.raises(ValueError, match="goal heading needs a rotating slider"):
+        Scene().with_goal((0.0, 0.0, 1.0))
     box = Scene()  # the paper's box: as before
     assert box.finger_limit == 6.0 and box.box_reach == 5.0 == box.finger_limit - box.approach_distance
     e.close()
