@@ -133,6 +133,55 @@ def test_off_centre_push_turns_the_tee_as_the_limit_surface_predicts(tee_sim):
     np.testing.assert_allclose(end, model, atol=0.01)
 
 
+def quasi_static_push(scene, finger_path, face_y, dt):
+    """The planner's model, integrated on its own: a slider at rest at the origin on the ellipsoidal limit
+    surface (v = f / b, omega = tau / b_theta), pushed on the face y = face_y (outward normal -y, slider
+    frame) by a sphere finger that follows `finger_path`, with Coulomb friction: sticking when the cone
+    allows it, else sliding on the cone's edge. Returns the final pose and the steps spent in each mode."""
+    b, b_theta = B, B * C**2 * TEE_R_MAX2
+    mu, radius = scene.finger_box_friction, scene.finger_radius
+    pose, modes = np.zeros(3), {"stick": 0, "slide": 0}
+    for prev, now in zip(finger_path[:-1], finger_path[1:]):
+        u = (now - prev) / dt  # finger velocity
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        n_in, tangent = np.array([-s, c]), np.array([c, s])  # into the face, along it (world)
+        local_y = -s * (now[0] - pose[0]) + c * (now[1] - pose[1])
+        if face_y - local_y - radius > 1e-4 or n_in @ u <= 0:
+            continue  # not touching, or moving away
+        r = now + radius * n_in - pose[:2]  # contact point from the centroid
+
+        def contact_velocity(f, r=r):  # of the slider's material point at the contact, under force f
+            return f / b + (r[0] * f[1] - r[1] * f[0]) / b_theta * np.array([-r[1], r[0]])
+
+        f = np.linalg.solve(np.column_stack([contact_velocity(e) for e in np.eye(2)]), u)
+        if f @ n_in >= 0 and abs(f @ tangent) <= mu * (f @ n_in):
+            modes["stick"] += 1
+        else:  # sliding: on the cone's edge, the normal speed still the finger's
+            d = n_in + np.sign(f @ tangent) * mu * tangent
+            f = d * (n_in @ u) / (n_in @ contact_velocity(d))
+            modes["slide"] += 1
+        pose += dt * np.array([f[0] / b, f[1] / b, (r[0] * f[1] - r[1] * f[0]) / b_theta])
+    return pose, modes
+
+
+@pytest.mark.parametrize(("x", "velocity"), [(0.75, (0.0, 0.3)), (0.9, (-0.1, 0.25))])
+def test_pushed_tee_follows_the_quasi_static_model_with_friction(tee_sim, x, velocity):
+    """A known push (the finger's path, measured) predicts the T's end pose through the planner's model
+    alone, friction included: no contact force from the sim enters the prediction."""
+    scene, sim, dt = TEE_SCENE, tee_sim, TEE_SCENE.time_step
+    face_y = scene.shape.parts[0][0][1]  # the bar's underside
+    start = np.array([x, face_y - scene.finger_radius - 0.02])
+    sim.reset([0.0, 0.0], start, 0.0)
+    path = [sim.finger_position()]
+    for k in range(1, 301):
+        sim.step(start + np.array(velocity) * k * dt, dt)
+        path.append(sim.finger_position())
+    model, modes = quasi_static_push(scene, np.array(path), face_y, dt)
+    end = np.array([*sim.box_position(), sim.box_heading()])
+    assert end[2] > 0.3 and modes["slide"] > 100  # it turned, and the finger slid along the face
+    np.testing.assert_allclose(end, model, atol=0.01)
+
+
 def test_a_disturbance_pushes_and_twists_by_its_impulse():
     protocol = Disturbances(probability_per_tick=1.0, max_count=1)  # one push at the first tick
     scene = dataclasses.replace(TEE_SCENE, disturbances=protocol)
