@@ -57,6 +57,17 @@ def test_check_env_passes(env_id, obs_type):
     env.close()
 
 
+def test_the_box_env_offers_environment_state_with_heading_zero():
+    env = gym.make("GcsPushBox-v0", obs_type="environment_state_agent_pos", render_size=96)
+    with warnings.catch_warnings(record=True):
+        warnings.simplefilter("always")
+        check_env(env.unwrapped)
+    obs, info = env.reset(options={"box": [1.0, -2.0], "finger": [-3.0, 3.0]})
+    np.testing.assert_array_equal(obs["environment_state"], [1.0, -2.0, 0.0])
+    assert "coverage" not in info  # the box env's info is as it was
+    env.close()
+
+
 def test_registered_scenes_and_workspace():
     assert (TEE_SCENE.slider, TEE_SCENE.rotates, TEE_SCENE.goal_heading) == ("tee", True, math.pi / 4)
     assert (SE2_SCENE.slider, SE2_SCENE.rotates) == ("box", True)
