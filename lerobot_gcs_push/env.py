@@ -107,8 +107,8 @@ class DisturbanceSchedule:
         u = self.rng.uniform(0.0, lengths.sum())
         i = min(int(np.searchsorted(np.cumsum(lengths), u)), len(faces) - 1)
         a, b = faces[i]
-        t = (u - (lengths[:i].sum())) / lengths[i]
-        return tuple(float(v) for v in a + np.clip(t, 0.0, 1.0) * (b - a))
+        t = np.clip((u - lengths[:i].sum()) / lengths[i], 0.0, 1.0)  # rounding may put u a hair past a face
+        return tuple(float(v) for v in a + t * (b - a))
 
 
 class GcsPushBoxEnv(gym.Env):
