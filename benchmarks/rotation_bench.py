@@ -87,6 +87,7 @@ def run(n: int = 20, seed: int = 0, slider: str = "box", **planner_kw) -> dict:
                 ratio.append(base.cost / plan.cost)
     return {
         "n": float(n),
+        "load_avg_1min": os.getloadavg()[0],  # 2 cores shared: timings scale with this
         "warm_up_s": warm_up_s,
         "plan_median_s": _med(times),
         "plan_p95_s": _p95(times),
@@ -111,9 +112,20 @@ def main(argv=None) -> dict:
     ap.add_argument("--slider", default="box", choices=("box", "tee"))
     ap.add_argument("--layers", type=int, default=2)
     ap.add_argument("--knots", type=int, default=5)
+    ap.add_argument("--pieces", type=int, default=1, help="contact-location intervals per face")
+    ap.add_argument("--window-margin", type=float, default=None, help="heading window (rad) and its chord cut")
     ap.add_argument("--no-rlt", action="store_true")
     args = ap.parse_args(argv)
-    stats = run(args.n, args.seed, args.slider, layers=args.layers, knots=args.knots, rlt=not args.no_rlt)
+    stats = run(
+        args.n,
+        args.seed,
+        args.slider,
+        layers=args.layers,
+        knots=args.knots,
+        rlt=not args.no_rlt,
+        pieces=args.pieces,
+        window_margin=args.window_margin,
+    )
     for k, v in stats.items():
         print(f"{k:32s} {v:.4g}")
     return stats

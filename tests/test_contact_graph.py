@@ -49,3 +49,17 @@ def test_layered_graph_is_acyclic_with_single_neighbours():
         assert (pred is None) == (v.layer == START)
     assert all(g.into(c) for c in range(4))  # layer 0 is entered from the start
     assert not g.out_of(g.contact_index(2, 0))  # the last layer only ends the plan
+
+
+def test_contact_location_pieces_split_every_face():
+    g = build_graph(MODEL, layers=2, pieces=2)
+    assert len(g.contacts) == 2 * 4 * 2
+    for c, v in enumerate(g.contacts):
+        assert g.contact_index(v.layer, v.face, v.piece) == c
+        for f in g.into(c):
+            assert g.successor(f) == c
+        for f in g.out_of(c):
+            assert g.predecessor(f) == c
+    # From the start every (face, piece) is reachable; between layers every piece pair is joined.
+    assert len(g.starts()) == 4 * 5 * 2
+    assert len(g.frees) == 4 * 5 * 2 + 8 * 5 * 2

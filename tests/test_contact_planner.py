@@ -127,3 +127,44 @@ def test_commands_and_json(plans):
 def test_finger_inside_the_slider_is_rejected(planner):
     with pytest.raises(ValueError, match="free-space pieces"):
         planner.plan((0.0, 2.0, 0.0), (0.1, 2.1))
+
+
+def lift(relaxation, graph, plan) -> float:
+    """Set the relaxation's variables to the plan's rank-one lift (flow 1 on its path, moment blocks
+    z z^T); return the lifted path's cost."""
+    for v in relaxation.problem.variables():
+        v.value = np.zeros(v.shape)
+    path = plan.extra["graph_path"]
+    pc, pf, pt = (np.zeros(v.shape) for v in (relaxation.phi_c, relaxation.phi_f, relaxation.phi_t))
+    pose = np.array([*plan.slider_poses[0][:2], math.cos(plan.slider_poses[0][2]), math.sin(plan.slider_poses[0][2])])
+    cost = 0.0
+    for f, c, push, q in zip(path["frees"], path["contacts"], plan.pushes, plan.free_knots):
+        pf[f], pc[c] = 1, 1
+        fr, rc = relaxation.frees[f], relaxation.contacts[c]
+        fr.q.value, fr.pose.value = q, pose
+        fr.moments.value = np.outer([1, *pose[2:]], [1, *pose[2:]])
+        cost += float(np.sum(np.diff(q, axis=0) ** 2))
+        rc.x.value, rc.y.value = push["x"], push["y"]
+        for k, m in enumerate(rc.blocks):
+            z = [1, push["lam"], push["c"][k], push["s"][k], push["fn"][k], push["ft"][k]]
+            z = np.array(z + [push["c"][k + 1], push["s"][k + 1]])
+            m.value = np.outer(z, z)
+        cost += float(rc.cost.value)
+        pose = np.array([push["x"][-1], push["y"][-1], push["c"][-1], push["s"][-1]])
+    pt[path["contacts"][-1]] = 1
+    relaxation.phi_c.value, relaxation.phi_f.value, relaxation.phi_t.value = pc, pf, pt
+    return cost
+
+
+def test_rounded_plan_lifts_into_the_relaxation(planner, plans):
+    """A relaxation must contain every feasible plan: the rank-one lift of each rounded plan satisfies
+    every constraint of the compiled relaxation (so its bound is a bound), at the plan's own cost."""
+    relax = planner.relaxation
+    for plan, (pose, finger) in zip(plans, STARTS):
+        p, q, goal, allow = planner.query(pose, finger)
+        relax.set_query(p, q, goal, allow, planner.window(p, goal))
+        cost = lift(relax, planner.graph, plan)
+        assert cost == pytest.approx(plan.cost, rel=1e-6)
+        worst = max(float(np.max(c.violation(), initial=0.0)) for c in relax.problem.constraints)
+        assert worst < 1e-6
+        assert plan.lower_bound <= cost + 1e-6

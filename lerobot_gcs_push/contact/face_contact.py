@@ -59,10 +59,13 @@ class StepForms:
     ineq_q: np.ndarray  # (p, 8, 8)
     redundant_q: np.ndarray  # (r, 8, 8)
     cost_q: np.ndarray  # (8, 8)
-    linear: list[np.ndarray] = field(default_factory=list)  # the first-order inequalities g . z >= 0
+    linear: list[np.ndarray] = field(default_factory=list)  # valid first-order inequalities g . z >= 0
+    lam_range: tuple[float, float] = (0.0, 1.0)
 
 
-def step_forms(face: Face, model: PushModel, rot_weight: float, rlt: bool = True) -> StepForms:
+def step_forms(
+    face: Face, model: PushModel, rot_weight: float, rlt: bool = True, lam_range: tuple[float, float] = (0.0, 1.0)
+) -> StepForms:
     n, t, a, e, k = face.n, face.t, face.a, face.e, model.kappa
     eqs: list[tuple[dict, list[float]]] = []
     # Midpoint translation: x1 - x0 = (R_k + R_k+1)/2 d, d = -fn n + ft t in the slider frame.
@@ -90,8 +93,8 @@ def step_forms(face: Face, model: PushModel, rot_weight: float, rlt: bool = True
     step = {(C0, C1): 1.0, (S0, S1): 1.0, (ONE, ONE): -math.cos(MAX_STEP_ROTATION)}
     # First-order inequalities: the friction cone, lam on the face, (c, s) in [-1, 1]^2.
     contact = [
-        _lin({LAM: 1.0}),
-        _lin({ONE: 1.0, LAM: -1.0}),
+        _lin({LAM: 1.0, ONE: -lam_range[0]}),
+        _lin({ONE: lam_range[1], LAM: -1.0}),
         _lin({FN: 1.0}),
         _lin({FN: model.mu, FT: -1.0}),
         _lin({FN: model.mu, FT: 1.0}),
@@ -104,6 +107,7 @@ def step_forms(face: Face, model: PushModel, rot_weight: float, rlt: bool = True
         # lam x fn (the torque arm), which these bound from both sides.
         for g, h in list(combinations(contact, 2)) + [(g, h) for g in trig for h in contact]:
             redundant.append(np.outer(g, h) / 2 + np.outer(h, g) / 2)
+    chord_with = contact + trig  # the chord cut's RLT partners (see ArcParameters)
     cost = _form({(FN, FN): 1.0, (FT, FT): 1.0, (ONE, ONE): 2 * rot_weight, (C0, C1): -2 * rot_weight})
     cost += _form({(S0, S1): -2 * rot_weight})
     return StepForms(
@@ -112,7 +116,8 @@ def step_forms(face: Face, model: PushModel, rot_weight: float, rlt: bool = True
         ineq_q=np.array(ineqs),
         redundant_q=np.array(redundant).reshape(-1, BLOCK, BLOCK),
         cost_q=cost,
-        linear=contact,
+        linear=chord_with,
+        lam_range=lam_range,
     )
 
 
@@ -127,8 +132,31 @@ def finger_body(face: Face, model: PushModel, lam):
 # The relaxation: one perspective copy (scale phi) of the mode, its moment blocks and linear positions.
 
 
+class ArcParameters:
+    """The heading window's chord cut u . (c, s) >= ch as cvxpy Parameters; products of parameters are
+    parameters of their own so that the problem stays DPP (compiled once)."""
+
+    def __init__(self):
+        self.u = cp.Parameter(2)
+        self.ch = cp.Parameter()
+        self.uu = cp.Parameter((2, 2))
+        self.uch = cp.Parameter(2)
+        self.chch = cp.Parameter()
+
+    def set(self, window) -> None:
+        u, ch = window.u, window.cos_half
+        self.u.value, self.ch.value = u, ch
+        self.uu.value, self.uch.value, self.chch.value = np.outer(u, u), u * ch, ch * ch
+
+    def row(self, m, c: int, s: int):
+        """The moments of (u . (c, s) - ch) times each entry of z."""
+        return self.u[0] * m[c, :] + self.u[1] * m[s, :] - self.ch * m[ONE, :]
+
+
 class RelaxedFaceContact:
-    def __init__(self, face: Face, model: PushModel, forms: StepForms, knots: int, phi):
+    def __init__(
+        self, face: Face, model: PushModel, forms: StepForms, knots: int, phi, arc: ArcParameters | None = None
+    ):
         self.face, self.model, self.knots, self.phi = face, model, knots, phi
         steps = knots - 1
         self.blocks = [cp.Variable((BLOCK, BLOCK), symmetric=True) for _ in range(steps)]
@@ -145,6 +173,15 @@ class RelaxedFaceContact:
             pos = cp.hstack([self.x[k], self.x[k + 1], self.y[k], self.y[k + 1]])
             cons += [m >> 0, m[ONE, ONE] == phi, eq_a @ v + forms.eq_l @ pos == 0, in_a @ v >= 0]
             cost = cost + cp.sum(cp.multiply(forms.cost_q, m))
+            if arc is not None:
+                g = np.array(forms.linear)
+                for c, s in ((C0, S0), (C1, S1)):
+                    row = arc.row(m, c, s)
+                    cons += [row[ONE] >= 0, g @ row >= 0]  # the cut, and its products with valid bounds
+                # (u . cs_k - ch)(u . cs_k+1 - ch) >= 0: both knots inside the window.
+                pair = sum(arc.uu[i, j] * m[(C0, S0)[i], (C1, S1)[j]] for i in range(2) for j in range(2))
+                pair = pair - sum(arc.uch[i] * (m[ONE, (C1, S1)[i]] + m[(C0, S0)[i], ONE]) for i in range(2))
+                cons.append(pair + arc.chch * m[ONE, ONE] >= 0)
             if k:
                 prev = self.blocks[k - 1]
                 cons.append(prev[np.ix_(SHARED_TAIL, SHARED_TAIL)] == m[np.ix_(SHARED_HEAD, SHARED_HEAD)])
@@ -190,8 +227,8 @@ class RelaxedFaceContact:
 
 
 class NlpFaceContact:
-    def __init__(self, prog, face: Face, model: PushModel, forms: StepForms, knots: int, tag: str):
-        self.face, self.model, self.knots = face, model, knots
+    def __init__(self, prog, face: Face, model: PushModel, forms: StepForms, knots: int, tag: str, window=None):
+        self.face, self.model, self.knots, self.lam_range = face, model, knots, forms.lam_range
         self.lam = prog.NewContinuousVariables(1, f"{tag}_lam")[0]
         self.c = prog.NewContinuousVariables(knots, f"{tag}_c")
         self.s = prog.NewContinuousVariables(knots, f"{tag}_s")
@@ -199,12 +236,16 @@ class NlpFaceContact:
         self.ft = prog.NewContinuousVariables(knots - 1, f"{tag}_ft")
         self.x = prog.NewContinuousVariables(knots, f"{tag}_x")
         self.y = prog.NewContinuousVariables(knots, f"{tag}_y")
-        prog.AddBoundingBoxConstraint(0.0, 1.0, self.lam)
+        prog.AddBoundingBoxConstraint(*forms.lam_range, self.lam)
         prog.AddBoundingBoxConstraint(-model.reach, model.reach, self.x)
         prog.AddBoundingBoxConstraint(-model.reach, model.reach, self.y)
         prog.AddBoundingBoxConstraint(-1.0, 1.0, self.c)
         prog.AddBoundingBoxConstraint(-1.0, 1.0, self.s)
         prog.AddBoundingBoxConstraint(0.0, np.inf, self.fn)
+        if window is not None:
+            u = window.u
+            for k in range(knots):
+                prog.AddLinearConstraint(u[0] * self.c[k] + u[1] * self.s[k] >= window.cos_half)
         self.cost = 0
         for k in range(knots - 1):
             z = np.array([1.0, self.lam, self.c[k], self.s[k], self.fn[k], self.ft[k], self.c[k + 1], self.s[k + 1]])
@@ -228,7 +269,7 @@ class NlpFaceContact:
         norm = np.maximum(np.hypot(c, s), 1e-9)  # the relaxation's headings lie inside the unit disk
         prog.SetInitialGuess(self.c, c / norm)
         prog.SetInitialGuess(self.s, s / norm)
-        prog.SetInitialGuess(self.lam, float(np.clip(guess["lam"], 0.0, 1.0)))
+        prog.SetInitialGuess(self.lam, float(np.clip(guess["lam"], *self.lam_range)))
         prog.SetInitialGuess(self.fn, np.maximum(guess["fn"], 0.0))
         prog.SetInitialGuess(self.ft, guess["ft"])
         prog.SetInitialGuess(self.x, guess["x"])

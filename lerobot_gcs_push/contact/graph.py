@@ -22,6 +22,7 @@ START = -1  # the layer of the start's non-collision vertices
 class ContactVertex:
     layer: int
     face: int
+    piece: int = 0  # which of the face's `pieces` equal intervals of lam the finger sticks in
 
     @property
     def name(self) -> str:
@@ -34,6 +35,8 @@ class FreeVertex:
     source: int  # the face it leaves, or for START the free-space piece the finger starts in
     target: int  # the face of the next layer's contact vertex
     route: tuple[int, ...]
+    source_piece: int = 0
+    target_piece: int = 0
 
     @property
     def name(self) -> str:
@@ -43,43 +46,54 @@ class FreeVertex:
 @dataclass(frozen=True)
 class ContactGraph:
     layers: int
+    n_faces: int
+    pieces: int
     contacts: tuple[ContactVertex, ...]
     frees: tuple[FreeVertex, ...]
 
-    def contact_index(self, layer: int, face: int) -> int:
-        return layer * self.n_faces + face
-
-    @property
-    def n_faces(self) -> int:
-        return len(self.contacts) // self.layers
+    def contact_index(self, layer: int, face: int, piece: int = 0) -> int:
+        return (layer * self.n_faces + face) * self.pieces + piece
 
     def into(self, c: int) -> list[int]:
         v = self.contacts[c]
-        return [k for k, f in enumerate(self.frees) if f.layer == v.layer - 1 and f.target == v.face]
+        return [
+            k
+            for k, f in enumerate(self.frees)
+            if f.layer == v.layer - 1 and f.target == v.face and f.target_piece == v.piece
+        ]
 
     def out_of(self, c: int) -> list[int]:
         v = self.contacts[c]
-        return [k for k, f in enumerate(self.frees) if f.layer == v.layer and f.source == v.face]
+        return [
+            k
+            for k, f in enumerate(self.frees)
+            if f.layer == v.layer and f.source == v.face and f.source_piece == v.piece
+        ]
 
     def successor(self, f: int) -> int:
         v = self.frees[f]
-        return self.contact_index(v.layer + 1, v.target)
+        return self.contact_index(v.layer + 1, v.target, v.target_piece)
 
     def predecessor(self, f: int) -> int | None:
         v = self.frees[f]
-        return None if v.layer == START else self.contact_index(v.layer, v.source)
+        return None if v.layer == START else self.contact_index(v.layer, v.source, v.source_piece)
 
     def starts(self) -> list[int]:
         return [k for k, f in enumerate(self.frees) if f.layer == START]
 
 
-def build_graph(model: PushModel, layers: int) -> ContactGraph:
+def build_graph(model: PushModel, layers: int, pieces: int = 1) -> ContactGraph:
+    """`pieces` > 1 splits each face's contact location into equal intervals, one contact vertex each:
+    inside one vertex the relaxation mixes contact points from the interval's two ends (the torque arm
+    lam * fn is where its slack sits), so narrower intervals leave it less room."""
     nf = len(model.faces)
-    contacts = tuple(ContactVertex(layer, j) for layer in range(layers) for j in range(nf))
+    contacts = tuple(ContactVertex(layer, j, k) for layer in range(layers) for j in range(nf) for k in range(pieces))
     frees = []
     for layer in range(START, layers - 1):
         for i in range(nf):
-            for j in range(nf):
-                for r in routes(nf, i, j):
-                    frees.append(FreeVertex(layer, i, j, r))
-    return ContactGraph(layers, contacts, tuple(frees))
+            for ki in range(1 if layer == START else pieces):
+                for j in range(nf):
+                    for r in routes(nf, i, j):
+                        for kj in range(pieces):
+                            frees.append(FreeVertex(layer, i, j, r, ki, kj))
+    return ContactGraph(layers, nf, pieces, contacts, tuple(frees))

@@ -77,3 +77,29 @@ class PushModel:
         step = 2 * math.pi / self.symmetry
         g = self.goal[2]
         return g + step * round((heading - g) / step)
+
+
+@dataclass(frozen=True)
+class HeadingWindow:
+    """Headings within half_width of mid: on the unit circle, exactly the half-plane u . (c, s) >= cos(h)
+    (u the mid heading's direction), a linear cut that keeps the relaxation's headings off the disk's
+    centre. Planning inside a window is a restriction of the problem: the certified bound is over the
+    plans whose heading stays inside it."""
+
+    mid: float
+    half_width: float
+
+    @classmethod
+    def around(cls, start: float, goal: float, margin: float) -> HeadingWindow:
+        half = abs(goal - start) / 2 + margin
+        if not half < math.pi / 2:
+            raise ValueError(f"a heading window of half-width {half:.3f} rad is no half-plane")
+        return cls((start + goal) / 2, half)
+
+    @property
+    def u(self) -> np.ndarray:
+        return np.array([math.cos(self.mid), math.sin(self.mid)])
+
+    @property
+    def cos_half(self) -> float:
+        return math.cos(self.half_width)

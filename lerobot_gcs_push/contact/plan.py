@@ -46,7 +46,8 @@ class ContactPlan:
     finger_path: np.ndarray  # (K, 2): finger centre in the world at each knot
     segment_kinds: list[SegmentKind]  # (K - 1,): FREE or PUSH
     goal: np.ndarray  # (3,): the goal pose the plan ends at (the shape's nearest symmetric copy)
-    pushes: list[dict] = field(default_factory=list)  # face, lam, fn, ft per contact mode
+    pushes: list[dict] = field(default_factory=list)  # face, lam, fn, ft (and knot poses x, y, c, s) per contact
+    free_knots: list[np.ndarray] = field(default_factory=list)  # finger knots in the slider frame per free mode
     candidates: int = 1
     extra: dict = field(default_factory=dict)
 
@@ -92,6 +93,7 @@ class ContactPlan:
             "segment_kinds": [str(k) for k in self.segment_kinds],
             "goal": self.goal.tolist(),
             "pushes": [{k: np.asarray(v).tolist() for k, v in p.items()} for p in self.pushes],
+            "free_knots": [np.asarray(q).tolist() for q in self.free_knots],
             "candidates": self.candidates,
             **self.extra,
         }
@@ -127,5 +129,5 @@ def trace(model: PushModel, graph: ContactGraph, r: Restriction, start_pose) -> 
                 fingers.append(world(p, qb))
                 kinds.append(PUSH)
         pose = poses[-1]
-        pushes.append({"face": face.index, "lam": sol["lam"], "fn": sol["fn"], "ft": sol["ft"]})
+        pushes.append({k: sol[k] for k in ("face", "lam", "fn", "ft", "x", "y", "c", "s")})
     return np.array(poses), np.array(fingers), kinds, modes, pushes

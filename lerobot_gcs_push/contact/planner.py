@@ -12,12 +12,12 @@ import time
 
 import numpy as np
 
-from lerobot_gcs_push.contact.face_contact import finger_body, step_forms
+from lerobot_gcs_push.contact.face_contact import finger_body
 from lerobot_gcs_push.contact.graph import START, build_graph
-from lerobot_gcs_push.contact.model import PushModel
+from lerobot_gcs_push.contact.model import HeadingWindow, PushModel
 from lerobot_gcs_push.contact.non_collision import free_regions, knots_of
 from lerobot_gcs_push.contact.plan import ContactPlan, trace
-from lerobot_gcs_push.contact.relaxation import GraphRelaxation
+from lerobot_gcs_push.contact.relaxation import GraphRelaxation, contact_forms
 from lerobot_gcs_push.contact.rounding import Path, round_relaxation, solve_restriction
 from lerobot_gcs_push.scene import Scene
 
@@ -37,31 +37,51 @@ class ContactPlanner:
         rlt: bool = True,
         candidates: int = 5,
         seed: int = 0,
+        window_margin: float | None = None,
+        pieces: int = 1,
     ):
         self.scene = scene
         self.model = PushModel.from_scene(scene)
         self.layers, self.knots, self.per_region, self.candidates = layers, knots, per_region, candidates
         # The finger sweeps about r_max per radian the slider turns: weight the rotation chord^2 alike.
         self.rot_weight = self.model.r_max**2 if rot_weight is None else rot_weight
-        self.graph = build_graph(self.model, layers)
+        self.graph = build_graph(self.model, layers, pieces)
         self.regions = free_regions(self.model)
-        self.forms = [step_forms(f, self.model, self.rot_weight, rlt) for f in self.model.faces]
+        self.forms = contact_forms(self.model, self.graph, self.rot_weight, rlt)
+        # The baseline plans on the plain graph (one contact vertex per face, the whole face): it must not
+        # inherit the relaxation's splits of the contact location.
+        self.baseline_graph = build_graph(self.model, 1, 1)
+        self.baseline_forms = contact_forms(self.model, self.baseline_graph, self.rot_weight, rlt)
         self.rng = np.random.default_rng(seed)
         self._relaxation = None
         self._rlt = rlt
+        # Headings stay within window_margin of the start-to-goal arc (None: unrestricted, no chord cut).
+        self.window_margin = window_margin
 
     @property
     def relaxation(self) -> GraphRelaxation:
         if self._relaxation is None:
             self._relaxation = GraphRelaxation(
-                self.model, self.graph, self.knots, self.per_region, self.rot_weight, self._rlt
+                self.model,
+                self.graph,
+                self.knots,
+                self.per_region,
+                self.rot_weight,
+                self._rlt,
+                self.window_margin is not None,
             )
         return self._relaxation
 
     def warm_up(self) -> float:
         """Build and compile the relaxation once (cvxpy's compile stays off the query path)."""
         t0 = time.perf_counter()
-        self.relaxation.solve((2.0, 1.0, 0.3), (4.0, 1.0), (0.0, 0.0, 0.0), np.ones(len(self.regions)))
+        self.relaxation.solve(
+            (2.0, 1.0, 0.3),
+            (4.0, 1.0),
+            (0.0, 0.0, 0.0),
+            np.ones(len(self.regions)),
+            HeadingWindow.around(0.3, 0.0, 0.5),
+        )
         return time.perf_counter() - t0
 
     def query(self, slider_pose, finger):
@@ -79,10 +99,16 @@ class ContactPlanner:
         goal = np.array([*self.model.goal[:2], self.model.goal_heading_near(pose[2])])
         return pose, q, goal, allow
 
+    def window(self, pose, goal) -> HeadingWindow | None:
+        if self.window_margin is None:
+            return None
+        return HeadingWindow.around(float(pose[2]), float(goal[2]), self.window_margin)
+
     def plan(self, slider_pose, finger) -> ContactPlan:
         pose, q, goal, allow = self.query(slider_pose, finger)
         t0 = time.perf_counter()
-        res = self.relaxation.solve(pose, q, goal, allow)
+        window = self.window(pose, goal)
+        res = self.relaxation.solve(pose, q, goal, allow, window)
         t1 = time.perf_counter()
         best, tried = round_relaxation(
             self.model,
@@ -97,6 +123,7 @@ class ContactPlanner:
             goal,
             self.candidates,
             self.rng,
+            window,
         )
         t2 = time.perf_counter()
         if best is None:
@@ -109,7 +136,12 @@ class ContactPlanner:
             res.bound,
             t2 - t0,
             tried,
-            {"relaxation_s": t1 - t0, "rounding_s": t2 - t1, "relaxation_status": res.status},
+            {
+                "relaxation_s": t1 - t0,
+                "rounding_s": t2 - t1,
+                "relaxation_status": res.status,
+                "graph_path": {"frees": list(best.path.frees), "contacts": list(best.path.contacts)},
+            },
         )
 
     def baseline(self, slider_pose, finger) -> ContactPlan:
@@ -121,11 +153,10 @@ class ContactPlanner:
         u = goal[:2] - pose[:2]
         u = np.array([c * u[0] + s * u[1], -s * u[0] + c * u[1]])
         face = int(np.argmax([-(f.n @ u) for f in self.model.faces]))
-        options = [
-            k for k, v in enumerate(self.graph.frees) if v.layer == START and allow[v.source] and v.target == face
-        ]
-        start_free = min(options, key=lambda k: len(self.graph.frees[k].route))
-        contact = self.graph.contact_index(0, face)
+        graph, lam = self.baseline_graph, 0.5
+        options = [k for k, v in enumerate(graph.frees) if v.layer == START and allow[v.source] and v.target == face]
+        start_free = min(options, key=lambda k: len(graph.frees[k].route))
+        contact = graph.contact_index(0, face)
         path = Path((start_free,), (contact,))
         # Straight-line guess: poses interpolated start to goal, pushing mid-face.
         w = np.linspace(0.0, 1.0, self.knots)
@@ -139,7 +170,7 @@ class ContactPlanner:
             fn.append(-(f.n @ db))
             ft.append(f.t @ db)
         guess_c = {
-            "lam": 0.5,
+            "lam": lam,
             "c": np.cos(th),
             "s": np.sin(th),
             "fn": np.array(fn),
@@ -147,14 +178,14 @@ class ContactPlanner:
             "x": xs,
             "y": ys,
         }
-        n_q = knots_of(self.graph.frees[start_free].route, self.per_region)
-        end = finger_body(f, self.model, 0.5)
+        n_q = knots_of(graph.frees[start_free].route, self.per_region)
+        end = finger_body(f, self.model, lam)
         guess_q = q[None, :] + np.linspace(0, 1, n_q)[:, None] * (end - q)[None, :]
         r = solve_restriction(
             self.model,
-            self.graph,
+            graph,
             self.regions,
-            self.forms,
+            self.baseline_forms,
             path,
             self.knots,
             self.per_region,
@@ -163,14 +194,15 @@ class ContactPlanner:
             goal,
             [guess_c],
             [guess_q],
+            self.window(pose, goal),
         )
         dt = time.perf_counter() - t0
         if not r.success:
             raise PlanningError("the baseline's SNOPT run found no feasible plan")
-        return self._plan("baseline", r, pose, goal, -np.inf, dt, 1, {})
+        return self._plan("baseline", r, pose, goal, -np.inf, dt, 1, {}, graph)
 
-    def _plan(self, method, r, pose, goal, bound, dt, tried, extra) -> ContactPlan:
-        poses, fingers, kinds, modes, pushes = trace(self.model, self.graph, r, pose)
+    def _plan(self, method, r, pose, goal, bound, dt, tried, extra, graph=None) -> ContactPlan:
+        poses, fingers, kinds, modes, pushes = trace(self.model, graph or self.graph, r, pose)
         return ContactPlan(
             method=method,
             cost=r.cost,
@@ -182,6 +214,7 @@ class ContactPlanner:
             segment_kinds=kinds,
             goal=goal,
             pushes=pushes,
+            free_knots=list(r.frees),
             candidates=tried,
             extra=extra,
         )

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import cvxpy as cp
 import numpy as np
 
-from lerobot_gcs_push.contact.face_contact import RelaxedFaceContact, step_forms
+from lerobot_gcs_push.contact.face_contact import ArcParameters, RelaxedFaceContact, step_forms
 from lerobot_gcs_push.contact.graph import ContactGraph
 from lerobot_gcs_push.contact.model import PushModel
 from lerobot_gcs_push.contact.non_collision import RelaxedNonCollision, free_regions
@@ -47,7 +47,16 @@ class RelaxationResult:
 
 
 class GraphRelaxation:
-    def __init__(self, model: PushModel, graph: ContactGraph, knots: int, per_region: int, rot_weight: float, rlt=True):
+    def __init__(
+        self,
+        model: PushModel,
+        graph: ContactGraph,
+        knots: int,
+        per_region: int,
+        rot_weight: float,
+        rlt: bool = True,
+        window: bool = True,
+    ):
         self.model, self.graph = model, graph
         self.regions = free_regions(model)
         self.start = cp.Parameter(4)
@@ -56,16 +65,17 @@ class GraphRelaxation:
         self.allow = cp.Parameter(len(self.regions), nonneg=True)
         self.goal = cp.Parameter(4)
         self.goal_moments = cp.Parameter((3, 3), symmetric=True)
+        self.arc = ArcParameters() if window else None
         self.phi_c = cp.Variable(len(graph.contacts), nonneg=True)
         self.phi_f = cp.Variable(len(graph.frees), nonneg=True)
         self.phi_t = cp.Variable(len(graph.contacts), nonneg=True)
-        forms = [step_forms(f, model, rot_weight, rlt) for f in model.faces]
+        forms = contact_forms(model, graph, rot_weight, rlt)
         self.contacts = [
-            RelaxedFaceContact(model.faces[v.face], model, forms[v.face], knots, self.phi_c[k])
+            RelaxedFaceContact(model.faces[v.face], model, forms[v.face, v.piece], knots, self.phi_c[k], self.arc)
             for k, v in enumerate(graph.contacts)
         ]
         self.frees = [
-            RelaxedNonCollision(model, self.regions, v.route, per_region, self.phi_f[k])
+            RelaxedNonCollision(model, self.regions, v.route, per_region, self.phi_f[k], self.arc)
             for k, v in enumerate(graph.frees)
         ]
         cons = [cp.sum(self.phi_f[graph.starts()]) == 1]
@@ -81,8 +91,8 @@ class GraphRelaxation:
                     fr.q[0] == phi * self.start_q,
                 ]
             else:
-                cons += _on_face(model.faces[v.source], r, fr.q[0], phi)
-            cons += _on_face(model.faces[v.target], r, fr.q[-1], phi)
+                cons += _on_face(model.faces[v.source], r, fr.q[0], phi, piece_range(graph, v.source_piece))
+            cons += _on_face(model.faces[v.target], r, fr.q[-1], phi, piece_range(graph, v.target_piece))
         for c, rc in enumerate(self.contacts):
             cons += rc.constraints
             ins, outs = graph.into(c), graph.out_of(c)
@@ -104,13 +114,18 @@ class GraphRelaxation:
         self.cost = sum(rc.cost for rc in self.contacts) + sum(fr.cost for fr in self.frees)
         self.problem = cp.Problem(cp.Minimize(self.cost), cons)
 
-    def solve(self, start_pose, start_q, goal_pose, allow) -> RelaxationResult:
+    def set_query(self, start_pose, start_q, goal_pose, allow, window=None) -> None:
+        if self.arc is not None:
+            self.arc.set(window)
         self.start.value = pose_vector(start_pose)
         self.start_moments.value = pose_moments(start_pose)
         self.start_q.value = np.asarray(start_q, float)
         self.allow.value = np.asarray(allow, float)
         self.goal.value = pose_vector(goal_pose)
         self.goal_moments.value = pose_moments(goal_pose)
+
+    def solve(self, start_pose, start_q, goal_pose, allow, window=None) -> RelaxationResult:
+        self.set_query(start_pose, start_q, goal_pose, allow, window)
         t0 = time.perf_counter()
         for attempt in range(2):  # about 1 solve in 30 raises a NumericalError that a re-solve clears
             try:
@@ -121,7 +136,9 @@ class GraphRelaxation:
                     raise
         dt = time.perf_counter() - t0
         return RelaxationResult(
-            bound=float(self.problem.value),
+            # The solver's objective: cvxpy's `value` re-evaluates the expression, and a perspective cost
+            # at zero flow (quad_over_lin(0, 0)) reads as inf there. Clarabel stops at a 1e-7 relative gap.
+            bound=float(self.problem.solution.opt_val),
             status=self.problem.status,
             solve_time_s=dt,
             contact_flow=np.clip(self.phi_c.value, 0, 1),
@@ -131,8 +148,22 @@ class GraphRelaxation:
         )
 
 
-def _on_face(face, r, q, phi) -> list:
-    """q / phi touches the face (its finger line, within the face's span)."""
+def piece_range(graph: ContactGraph, piece: int) -> tuple[float, float]:
+    return piece / graph.pieces, (piece + 1) / graph.pieces
+
+
+def contact_forms(model: PushModel, graph: ContactGraph, rot_weight: float, rlt: bool) -> dict:
+    """The step forms of every (face, lam piece)."""
+    return {
+        (f.index, k): step_forms(f, model, rot_weight, rlt, piece_range(graph, k))
+        for f in model.faces
+        for k in range(graph.pieces)
+    }
+
+
+def _on_face(face, r, q, phi, lam_range) -> list:
+    """q / phi touches the face (its finger line, within the piece's span of lam)."""
     tq = face.t @ q
-    t0 = float(face.t @ face.a)
-    return [face.n @ q == phi * (face.offset + r), tq >= phi * t0, tq <= phi * (t0 + np.linalg.norm(face.e))]
+    t0, length = float(face.t @ face.a), float(np.linalg.norm(face.e))
+    lo, hi = (t0 + lam * length for lam in lam_range)
+    return [face.n @ q == phi * (face.offset + r), tq >= phi * lo, tq <= phi * hi]

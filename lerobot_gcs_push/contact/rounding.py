@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lerobot_gcs_push.contact.face_contact import NlpFaceContact, StepForms, step_forms
+from lerobot_gcs_push.contact.face_contact import NlpFaceContact, StepForms
 from lerobot_gcs_push.contact.graph import ContactGraph
 from lerobot_gcs_push.contact.model import PushModel
 from lerobot_gcs_push.contact.non_collision import NlpNonCollision, Region
@@ -78,7 +78,7 @@ def solve_restriction(
     model: PushModel,
     graph: ContactGraph,
     regions: list[Region],
-    forms: list[StepForms],
+    forms: dict[tuple[int, int], StepForms],
     path: Path,
     knots: int,
     per_region: int,
@@ -87,6 +87,7 @@ def solve_restriction(
     goal_pose,
     guess_contacts: list[dict],
     guess_frees: list[np.ndarray],
+    window=None,
 ) -> Restriction:
     from pydrake.solvers import MathematicalProgram, SnoptSolver, SolverOptions
 
@@ -94,8 +95,8 @@ def solve_restriction(
     prog = MathematicalProgram()
     cs = []
     for k, c in enumerate(path.contacts):
-        face = graph.contacts[c].face
-        cs.append(NlpFaceContact(prog, model.faces[face], model, forms[face], knots, f"c{k}"))
+        v = graph.contacts[c]
+        cs.append(NlpFaceContact(prog, model.faces[v.face], model, forms[v.face, v.piece], knots, f"c{k}", window))
     fs = [
         NlpNonCollision(prog, model, regions, graph.frees[f].route, per_region, f"f{k}")
         for k, f in enumerate(path.frees)
@@ -135,7 +136,19 @@ def _equal(prog, a, b) -> None:
 
 
 def round_relaxation(
-    model, graph, regions, forms, res: RelaxationResult, knots, per_region, start_pose, start_q, goal_pose, count, rng
+    model,
+    graph,
+    regions,
+    forms,
+    res: RelaxationResult,
+    knots,
+    per_region,
+    start_pose,
+    start_q,
+    goal_pose,
+    count,
+    rng,
+    window=None,
 ) -> tuple[Restriction | None, int]:
     best, tried = None, 0
     for path in sample_paths(graph, res, count, rng):
@@ -153,10 +166,11 @@ def round_relaxation(
             goal_pose,
             [res.contact_guess(c) for c in path.contacts],
             [res.free_guess(f)["q"] for f in path.frees],
+            window,
         )
         if r.success and (best is None or r.cost < best.cost):
             best = r
     return best, tried
 
 
-__all__ = ["Path", "Restriction", "round_relaxation", "sample_paths", "solve_restriction", "step_forms"]
+__all__ = ["Path", "Restriction", "round_relaxation", "sample_paths", "solve_restriction"]
