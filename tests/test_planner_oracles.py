@@ -73,7 +73,7 @@ def test_drake_matches_micp(planner, cases, i):
     assert _close(split.cost + extra, ours, REL), msg
     assert split.lower_bound + extra <= ours + BOUND_TOL * max(1.0, ours), msg
     # Drake's path, re-solved with our restriction, costs what Drake says.
-    mine = planner.restrictions.solve(single.edges, src, goal)
+    mine = planner.conic.restrict(planner.conic.at(src, goal, allowed), single.edges, src, goal)
     assert _close(mine.cost, single.cost, EXACT_REL), msg
 
 

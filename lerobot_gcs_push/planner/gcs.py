@@ -29,7 +29,7 @@ import cvxpy as cp
 import numpy as np
 
 from lerobot_gcs_push.planner.graph import ModeGraph, VertexKind
-from lerobot_gcs_push.planner.transcription import edge_constraint, in_set, vertex_constraints, vertex_costs
+from lerobot_gcs_push.planner.transcription import edge_constraint, in_set, vertex_costs
 
 
 class SolverError(RuntimeError):
@@ -44,6 +44,11 @@ class FlowSolution:
     status: str
 
 
+def free_coords(vert) -> list[int]:
+    """The coordinates of a vertex's point that the query does not pin."""
+    return [j for j in range(vert.dim) if j not in vert.pin_cols]
+
+
 class GcsProgram:
     def __init__(self, graph: ModeGraph, integer: bool = False, two_cycles: bool = False):
         self.graph = graph
@@ -54,18 +59,21 @@ class GcsProgram:
         self.goal = cp.Parameter(V[graph.target].dim, name="goal")
         theta = cp.hstack([self.src, self.goal])  # graph.Theta
         self.allowed = cp.Parameter(nE, nonneg=True, name="allowed")
-        self.y = cp.Variable(nE, boolean=True) if integer else cp.Variable(nE, nonneg=True)
+        # No `nonneg` attribute: cvxpy would swap in a new variable, and conic.py finds y by its id.
+        self.y = cp.Variable(nE, boolean=True, name="y") if integer else cp.Variable(nE, name="y")
         y = self.y
+        self.variables: dict[str, cp.Variable] = {}  # the copies' unpinned coordinates, by name
         self.z: dict[int, cp.Expression] = {}
         self.w: dict[int, cp.Expression] = {}
         for i, e in enumerate(E):
-            self.z[i] = y[i] * self.src if e.u == graph.source else cp.Variable(V[e.u].dim, name=f"z{i}")
-            self.w[i] = y[i] * self.goal if e.v == graph.target else cp.Variable(V[e.v].dim, name=f"w{i}")
+            self.z[i] = y[i] * self.src if e.u == graph.source else self._copy(V[e.u], y[i], theta, f"z{i}")
+            self.w[i] = y[i] * self.goal if e.v == graph.target else self._copy(V[e.v], y[i], theta, f"w{i}")
 
-        cons: list[cp.Constraint] = [y <= self.allowed]
+        cons: list[cp.Constraint] = [y <= self.allowed] + ([] if integer else [y >= 0])
         for i, e in enumerate(E):
-            cons += vertex_constraints(V[e.u], self.z[i], theta, y[i])
-            cons += vertex_constraints(V[e.v], self.w[i], theta, y[i])
+            # The pins hold by construction of the copies (`_copy`); the source and target have no set.
+            cons += in_set(V[e.u], self.z[i], y[i])
+            cons += in_set(V[e.v], self.w[i], y[i])
             cons.append(edge_constraint(e, self.z[i], self.w[i], y[i]))
 
         ins = {v: graph.in_edges(v) for v in range(len(V))}
@@ -88,6 +96,20 @@ class GcsProgram:
         self.problem = cp.Problem(cp.Minimize(sum(cost_terms)), cons)
         assert self.problem.is_dcp(dpp=True), "GCS program must be DPP so that queries skip compilation"
         self.compile_time_s = 0.0
+
+    def _copy(self, vert, y, theta, name: str) -> cp.Expression:
+        """An edge's copy of a vertex point, y x. Its pinned coordinates are y S theta, no variables: half
+        of a free vertex's point and all of a push vertex's are pinned, so Clarabel and SCIP get a
+        program with about half the variables and none of the pin equalities."""
+        free = free_coords(vert)
+        eye = np.eye(vert.dim)
+        parts = []
+        if free:
+            self.variables[name] = cp.Variable(len(free), name=name)
+            parts.append(eye[:, free] @ self.variables[name])
+        if vert.pin_cols:
+            parts.append(eye[:, list(vert.pin_cols)] @ (y * (vert.pin_S @ theta)))
+        return sum(parts[1:], parts[0])
 
     def _two_cycles(self, v: int, ins: list[int], outs: list[int]) -> list[cp.Constraint]:
         E, y = self.graph.edges, self.y

@@ -7,10 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lerobot_gcs_push.planner.conic_gcs import ConicGcs
 from lerobot_gcs_push.planner.gcs import GcsProgram, SolverError
 from lerobot_gcs_push.planner.graph import ModeGraph, SourcePoint, build_graph
+from lerobot_gcs_push.planner.micp import ScipMicp
 from lerobot_gcs_push.planner.plan import FREE, Plan, trace
-from lerobot_gcs_push.planner.restriction import RestrictionCache
 from lerobot_gcs_push.planner.rounding import candidate_paths
 from lerobot_gcs_push.scene import Scene
 
@@ -58,13 +59,33 @@ class GcsPlanner:
         self.goal_tolerance = goal_tolerance
         self.seed = seed
         self._programs: dict[str, GcsProgram] = {}
-        self.restrictions = RestrictionCache(self.graph)
         self.compile_time_s: dict[str, float] = {}
+        self._conic: ConicGcs | None = None
+        self._micp: ScipMicp | None = None
         if compile_now:
-            self.program(method)
+            self.warm_up()
+
+    @property
+    def conic(self) -> ConicGcs:
+        """The relaxation's conic data, which plans read (built on first use; see conic_gcs.py)."""
+        if self._conic is None:
+            t0 = time.perf_counter()
+            self._conic = ConicGcs(self.graph)
+            self.compile_time_s["conic"] = time.perf_counter() - t0
+        return self._conic
+
+    @property
+    def micp(self) -> ScipMicp:
+        """The MICP's conic data for SCIP (built on first use; see micp.py)."""
+        if self._micp is None:
+            t0 = time.perf_counter()
+            self._micp = ScipMicp(self.graph)
+            self.compile_time_s["micp_conic"] = time.perf_counter() - t0
+        return self._micp
 
     def program(self, method: str) -> GcsProgram:
-        """The compiled program for `method` (compiled on first use; the time is kept)."""
+        """The cvxpy program for `method`, compiled on first use (the time is kept). Plans solve its conic
+        form (`conic`, `micp`); the program itself is the reference that tests solve through cvxpy."""
         check_method(method)
         if method not in self._programs:
             t0 = time.perf_counter()
@@ -86,18 +107,19 @@ class GcsPlanner:
         q = self._query(box, finger, goal)
         if q is None:
             return self._plan_without_push(method, box, finger, goal, t0)
-        prog = self.program(method)
-        prog.set_query(q.src, q.goal, q.allowed)
-        flows = prog.solve()
         if method == "micp":
+            flows = self.micp.solve(q.src, q.goal, q.allowed)
+            conic = self.conic.at(q.src, q.goal, q.allowed)
             paths = candidate_paths(self.graph, flows.flows, None, 1, min_flow=0.5)
         else:
+            relaxed = self.conic.relax(q.src, q.goal, q.allowed)
+            conic, flows = relaxed.conic, relaxed.flows
             # Seeded by the query, so a plan never depends on what this planner solved before.
             rng = np.random.default_rng([self.seed, *np.frombuffer(np.r_[q.src, q.goal].tobytes(), np.uint32)])
             paths = candidate_paths(self.graph, flows.flows, rng, self.rounding_trials)
         best = None
         for p in paths:
-            sol = self.restrictions.solve(p, q.src, q.goal)
+            sol = self.conic.restrict(conic, p, q.src, q.goal)
             if best is None or sol.rank() < best.rank():
                 best = sol
         if best is None or not np.isfinite(best.cost):
@@ -174,9 +196,9 @@ class GcsPlanner:
         return start, float(np.linalg.norm(start - finger))
 
     def warm_up(self) -> float:
-        """Compile the restriction of every simple path now, so that no query pays for it later."""
+        """Build what plans need now, so that no query pays for it; returns the time taken."""
         t0 = time.perf_counter()
-        src = np.concatenate([np.zeros(2), [0.0, -2.0]])
-        for p in self.graph.simple_paths():
-            self.restrictions.solve(p, src, np.array([1.0, 1.0]))
+        self.conic  # noqa: B018 - built on first access
+        if self.method == "micp":
+            self.micp  # noqa: B018
         return time.perf_counter() - t0

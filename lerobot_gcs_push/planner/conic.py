@@ -1,0 +1,183 @@
+"""A cvxpy program's conic data taken once, then handed to Clarabel directly, query after query.
+
+cvxpy's per-solve work (applying parameters through its chain, building the solver's inputs, unpacking
+the solution) costs more than Clarabel's solve on programs this small. The programs here are DPP, so
+their conic data  min c.x + d  s.t.  A x + s = b, s in (zero, nonneg, second-order cones)  is affine in
+the parameters: `ParametricConic` evaluates it once at theta = 0 and once per unit vector of theta, and
+a query is a matrix-vector product. `Conic.fix` then removes variables with known values (the edges a
+query forbids, or all edges off a path): the subproblem is the same program, only smaller.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import clarabel
+import cvxpy as cp
+import numpy as np
+import scipy.sparse as sp
+from cvxpy import settings as cvxpy_settings
+
+FEAS_TOL = 1e-9  # a row left without variables must hold on its constant to this
+
+
+class Infeasible(Exception):
+    """Fixing variables left a constant row that does not hold."""
+
+
+@dataclass
+class ConicSolution:
+    status: str  # Clarabel's: "Solved", "AlmostSolved", "PrimalInfeasible", ...
+    value: float  # inf unless solved
+    x: np.ndarray  # every variable of the program `fix` was called on (fixed ones at their values)
+    solve_time_s: float
+
+    @property
+    def solved(self) -> bool:
+        return self.status in ("Solved", "AlmostSolved")
+
+
+@dataclass
+class Conic:
+    """min c.x + d s.t. A x + s = b, s in zero^nz x nonneg^nn x SOC(soc[0]) x SOC(soc[1]) ..."""
+
+    A: sp.csc_matrix
+    b: np.ndarray
+    c: np.ndarray
+    d: float
+    zero: int
+    nonneg: int
+    soc: list[int]
+    free: np.ndarray | None = None  # columns of the original program (None: this is it)
+    fixed: np.ndarray | None = None  # the original program's x with the fixed values filled in
+
+    def fix(self, values: np.ndarray) -> Conic:
+        """The program with the variables whose entry in `values` is not NaN fixed to it. Rows left
+        without variables are dropped (raising `Infeasible` if their constant violates the cone), and a
+        second-order cone whose tail lost its variables becomes t >= 0."""
+        free = np.isnan(values)
+        v = np.where(free, 0.0, values)
+        A = self.A[:, free]
+        b = self.b - self.A @ v
+        used = np.bincount(A.indices[A.data != 0], minlength=A.shape[0]) > 0
+        zero = np.arange(self.zero)
+        nonneg = self.zero + np.arange(self.nonneg)
+        if np.any(np.abs(b[zero[~used[zero]]]) > FEAS_TOL) or np.any(b[nonneg[~used[nonneg]]] < -FEAS_TOL):
+            raise Infeasible
+        rows_zero, rows_nonneg, rows_soc, soc = [zero[used[zero]]], [nonneg[used[nonneg]]], [], []
+        start = self.zero + self.nonneg
+        for k in self.soc:
+            head, tail = start, np.arange(start + 1, start + k)
+            start += k
+            if used[tail].any():
+                rows_soc.append(np.arange(head, head + k))
+                soc.append(k)
+            elif np.linalg.norm(b[tail]) > FEAS_TOL:  # a constant tail: still a cone on the head
+                rows_soc.append(np.arange(head, head + k))
+                soc.append(k)
+            elif used[head]:
+                rows_nonneg.append([head])
+            elif b[head] < -FEAS_TOL:
+                raise Infeasible
+        rows = np.concatenate(rows_zero + rows_nonneg + rows_soc).astype(int)
+        base_free = np.arange(len(self.c)) if self.free is None else self.free
+        base_fixed = values if self.fixed is None else _scatter(self.fixed, self.free, values)
+        return Conic(
+            A=A[rows].tocsc(),
+            b=b[rows],
+            c=self.c[free],
+            d=self.d + float(self.c @ v),
+            zero=len(rows_zero[0]),
+            nonneg=sum(len(r) for r in rows_nonneg),
+            soc=soc,
+            free=base_free[free],
+            fixed=base_fixed,
+        )
+
+    def solve(self) -> ConicSolution:
+        """Clarabel on this data, with its default settings (those cvxpy passes too)."""
+        n = len(self.c)
+        cones = []
+        if self.zero:
+            cones.append(clarabel.ZeroConeT(self.zero))
+        if self.nonneg:
+            cones.append(clarabel.NonnegativeConeT(self.nonneg))
+        cones += [clarabel.SecondOrderConeT(k) for k in self.soc]
+        settings = clarabel.DefaultSettings()
+        settings.verbose = False
+        solver = clarabel.DefaultSolver(sp.csc_matrix((n, n)), self.c, self.A, self.b, cones, settings)
+        sol = solver.solve()
+        status = str(sol.status)
+        x = np.asarray(sol.x, float)
+        full = x if self.free is None else _scatter(self.fixed, self.free, x)
+        solved = status in ("Solved", "AlmostSolved")
+        value = float(sol.obj_val) + self.d if solved else np.inf
+        return ConicSolution(status, value, full, float(sol.solve_time))
+
+
+def _scatter(base: np.ndarray, where: np.ndarray, values: np.ndarray) -> np.ndarray:
+    out = base.copy()
+    out[where] = values
+    return out
+
+
+class ParametricConic:
+    """The conic data of a DPP cvxpy `problem` as an affine function of its `params` (stacked in that
+    order into theta), and where each of `variables` sits in x. `solver` (Clarabel or SCIP, which read
+    the same conic form) only decides which cvxpy chain produces it."""
+
+    def __init__(
+        self,
+        problem: cp.Problem,
+        params: list[cp.Parameter],
+        variables: dict[str, cp.Variable],
+        solver: str = cp.CLARABEL,
+    ):
+        data, _, _ = problem.get_problem_data(solver, ignore_dpp=False)
+        self.boolean = np.zeros(data["param_prob"].x.size, bool)  # binary variables, as a mask over x
+        self.boolean[list(data.get(cvxpy_settings.BOOL_IDX, []))] = True
+        prog, dims = data["param_prob"], data["dims"]
+        if dims.exp or dims.psd or dims.p3d or prog.P is not None:
+            raise ValueError("only zero, nonnegative and second-order cones with a linear objective")
+        self.zero, self.nonneg, self.soc = int(dims.zero), int(dims.nonneg), [int(k) for k in dims.soc]
+        self.columns = {
+            name: slice(prog.var_id_to_col[v.id], prog.var_id_to_col[v.id] + v.size) for name, v in variables.items()
+        }
+        self.sizes = [p.size for p in params]
+        probes = [np.zeros(sum(self.sizes))] + list(np.eye(sum(self.sizes)))
+        c, d, A, b = zip(*(prog.apply_parameters(self._values(params, t), keep_zeros=True) for t in probes))
+        self.shape = A[0].shape
+        # One sparsity pattern for every theta: the union of the probes', in CSC order.
+        coo = [a.tocoo() for a in A]
+        keys = [a.col.astype(np.int64) * self.shape[0] + a.row for a in coo]
+        pattern = np.unique(np.concatenate(keys))
+        vals = np.zeros((len(pattern), len(probes)))
+        for j, (k, a) in enumerate(zip(keys, coo)):
+            np.add.at(vals[:, j], np.searchsorted(pattern, k), a.data)
+        self.indices = (pattern % self.shape[0]).astype(np.int32)
+        self.indptr = np.searchsorted(pattern // self.shape[0], np.arange(self.shape[1] + 1)).astype(np.int32)
+        # Clarabel's convention is cvxpy's with A negated (ConicSolver.apply).
+        self.A_map = _affine(-vals)
+        self.b_map = _affine(np.stack(b, axis=1))
+        self.c_map = _affine(np.stack(c, axis=1))
+        self.d_map = _affine(np.array(d, float)[None])[0]
+
+    @staticmethod
+    def _values(params, theta) -> dict:
+        out, i = {}, 0
+        for p in params:
+            out[p.id] = theta[i : i + p.size].reshape(p.shape, order="F") if p.shape else theta[i]
+            i += p.size
+        return out
+
+    def at(self, theta: np.ndarray) -> Conic:
+        t = np.concatenate([[1.0], np.asarray(theta, float)])
+        A = sp.csc_matrix((self.A_map @ t, self.indices, self.indptr), shape=self.shape)
+        return Conic(A, self.b_map @ t, self.c_map @ t, float(self.d_map @ t), self.zero, self.nonneg, self.soc)
+
+
+def _affine(probes: np.ndarray) -> np.ndarray:
+    """Columns [f(0), f(e_1), ...] -> [f(0), f(e_1) - f(0), ...]: f(theta) = M @ [1, theta]."""
+    out = probes.copy()
+    out[:, 1:] -= probes[:, :1]
+    return out

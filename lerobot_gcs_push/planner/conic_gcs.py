@@ -1,0 +1,122 @@
+"""The GCS relaxation and every path's restriction, solved from one conic form of the relaxation.
+
+A query sets theta = [source, goal, allowed] in the relaxation's conic data (conic.py) once; then
+
+* the relaxation drops the edges the query forbids (y, z, w fixed to 0) instead of bounding their flow
+  by 0 inside the solve: a smaller program with the same optimum;
+* a path's restriction is the relaxation with y fixed to the path's indicator and every other edge
+  dropped: flow conservation then carries y = 1 along the path, and each copy of a path vertex's point
+  equals the point (the perspective of a bounded set at y = 0 is {0}). Its optimum is the restriction's
+  (restriction.py writes it directly; tests/test_planner_conic.py checks both agree), and no path needs
+  a program of its own, so nothing compiles per path.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import cvxpy as cp
+import numpy as np
+
+from lerobot_gcs_push.planner.conic import Conic, Infeasible, ParametricConic
+from lerobot_gcs_push.planner.gcs import FlowSolution, GcsProgram, SolverError, free_coords
+from lerobot_gcs_push.planner.graph import ModeGraph
+from lerobot_gcs_push.planner.restriction import PathSolution
+
+
+@dataclass
+class ConicQuery:
+    """One query's conic data and what the relaxation found on it."""
+
+    conic: Conic
+    flows: FlowSolution
+
+
+def parametric(graph: ModeGraph, integer: bool = False) -> ParametricConic:
+    """The GCS program's conic data: the relaxation (Clarabel) or the MICP with its two-cycle cuts (SCIP)."""
+    prog = GcsProgram(graph, integer=integer, two_cycles=integer)
+    variables = {"y": prog.y, **prog.variables}
+    return ParametricConic(
+        prog.problem, [prog.src, prog.goal, prog.allowed], variables, cp.SCIP if integer else cp.CLARABEL
+    )
+
+
+class EdgeColumns:
+    """Where each edge's flow and copies sit in a GCS program's conic x, to fix them per query."""
+
+    def __init__(self, graph: ModeGraph, data: ParametricConic):
+        cols = data.columns
+        self.n = len(data.c_map)
+        self.y = np.arange(cols["y"].start, cols["y"].stop)
+        # Per edge, the columns of its flow and of its copies' variables (those not y * parameter).
+        self.edge = [
+            np.r_[self.y[i], _cols(cols.get(f"z{i}")), _cols(cols.get(f"w{i}"))] for i in range(len(graph.edges))
+        ]
+        self.w = [_cols(cols.get(f"w{i}")) for i in range(len(graph.edges))]
+
+    def fixed(self, dropped, flows: dict[int, float]) -> np.ndarray:
+        """x's values for `Conic.fix`: the `dropped` edges at 0, the `flows` given, the rest NaN (free)."""
+        values = np.full(self.n, np.nan)
+        for i in dropped:
+            values[self.edge[i]] = 0.0
+        for i, y in flows.items():
+            values[self.y[i]] = y
+        return values
+
+
+class ConicGcs:
+    def __init__(self, graph: ModeGraph, data: ParametricConic | None = None):
+        self.graph = graph
+        self.data = data or parametric(graph)
+        self.cols = EdgeColumns(graph, self.data)
+
+    def relax(self, src, goal, allowed) -> ConicQuery:
+        """The relaxation of the query; raises SolverError when it has no optimum."""
+        conic = self.at(src, goal, allowed)
+        t0 = time.perf_counter()
+        try:
+            sol = conic.fix(self.cols.fixed([i for i in range(len(allowed)) if allowed[i] <= 0], {})).solve()
+        except Infeasible:
+            sol = None
+        elapsed = time.perf_counter() - t0
+        if sol is None or not sol.solved:
+            status = "infeasible" if sol is None else sol.status
+            raise SolverError(f"CLARABEL returned status {status!r} on the GCS relaxation")
+        flows = np.clip(sol.x[self.cols.y], 0.0, 1.0)
+        return ConicQuery(conic, FlowSolution(sol.value, flows, elapsed, sol.status))
+
+    def at(self, src, goal, allowed) -> Conic:
+        return self.data.at(np.concatenate([src, goal, allowed]))
+
+    def restrict(self, conic: Conic, edges, src, goal) -> PathSolution:
+        """The exact optimum along the path `edges` (an inf cost when it is infeasible)."""
+        g = self.graph
+        edges = tuple(edges)
+        vertices = (g.edges[edges[0]].u,) + tuple(g.edges[i].v for i in edges)
+        on = set(edges)
+        t0 = time.perf_counter()
+        try:
+            sol = conic.fix(
+                self.cols.fixed([i for i in range(len(g.edges)) if i not in on], {i: 1.0 for i in edges})
+            ).solve()
+        except Infeasible:
+            return PathSolution(edges, vertices, np.inf, {}, time.perf_counter() - t0)
+        elapsed = time.perf_counter() - t0
+        if not sol.solved:
+            return PathSolution(edges, vertices, np.inf, {}, elapsed)
+        theta = np.concatenate([src, goal])
+        points = {g.edges[i].v: self._point(g.edges[i].v, sol.x[self.cols.w[i]], theta) for i in edges[:-1]}
+        return PathSolution(edges, vertices, sol.value, points, elapsed, accurate=sol.status == "Solved")
+
+    def _point(self, v: int, unpinned: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        vert = self.graph.vertices[v]
+        x = np.zeros(vert.dim)
+        x[free_coords(vert)] = unpinned
+        if vert.pin_cols:
+            x[list(vert.pin_cols)] = vert.pin_S @ theta
+        return x
+
+
+def _cols(s: slice | None) -> np.ndarray:
+    return np.arange(0) if s is None else np.arange(s.start, s.stop)

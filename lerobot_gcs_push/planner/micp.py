@@ -1,0 +1,100 @@
+"""The exact MICP in SCIP, from the program's conic data, started from a known plan.
+
+cvxpy's SCIP interface rebuilds the model from a dictionary-of-keys matrix on every solve and offers
+no way to pass a starting solution. Here the MICP's conic data (conic.py, with its two-cycle cuts) is
+set for the query, the edges it forbids are dropped, and the model is built from it directly. The
+rounded plan's path is given to SCIP as a partial solution (its flows; SCIP completes the continuous
+part), so SCIP starts with an incumbent within 1% of the optimum and prunes from the first node.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from pyscipopt import Model, quicksum
+
+from lerobot_gcs_push.planner.conic import Conic, Infeasible
+from lerobot_gcs_push.planner.conic_gcs import EdgeColumns, parametric
+from lerobot_gcs_push.planner.gcs import FlowSolution, SolverError
+from lerobot_gcs_push.planner.graph import ModeGraph
+
+# SCIP settings measured one by one on the benchmark's queries (benchmarks/planner_profile.py); none
+# beat the defaults by more than the noise, so the model keeps them.
+SCIP_PARAMS: dict = {}
+
+
+class ScipMicp:
+    def __init__(self, graph: ModeGraph):
+        self.graph = graph
+        self.data = parametric(graph, integer=True)
+        self.cols = EdgeColumns(graph, self.data)
+
+    def solve(
+        self,
+        src,
+        goal,
+        allowed,
+        start: tuple[int, ...] | None = None,
+        cutoff: float | None = None,
+        params: dict | None = None,
+    ) -> FlowSolution:
+        """The MICP's flows. `start`: a feasible path (edge indices) to begin from; `cutoff`: the cost of
+        a feasible plan, above which SCIP may discard any node."""
+        t0 = time.perf_counter()
+        dropped = [i for i in range(len(allowed)) if allowed[i] <= 0]
+        try:
+            conic = self.data.at(np.concatenate([src, goal, allowed])).fix(self.cols.fixed(dropped, {}))
+        except Infeasible:
+            raise SolverError("SCIP: the GCS MICP is infeasible (no allowed path)") from None
+        model, x = _model(conic, self.data.boolean[conic.free])
+        model.setParams({**SCIP_PARAMS, **(params or {})})
+        if cutoff is not None:
+            model.setObjlimit(cutoff - conic.d)
+        if start is not None:
+            sol = model.createPartialSol()
+            on = set(start)
+            for i in range(len(allowed)):
+                j = np.searchsorted(conic.free, self.cols.y[i])
+                if j < len(conic.free) and conic.free[j] == self.cols.y[i]:
+                    model.setSolVal(sol, x[j], float(i in on))
+            model.addSol(sol)
+        self.build_time_s = time.perf_counter() - t0
+        model.optimize()
+        status = model.getStatus()
+        if status not in ("optimal", "gaplimit") or model.getNSols() == 0:
+            raise SolverError(f"SCIP returned status {status!r} on the GCS MICP")
+        best = model.getBestSol()
+        full = conic.fixed.copy()
+        full[conic.free] = [best[v] for v in x]
+        flows = np.clip(full[self.cols.y], 0.0, 1.0)
+        return FlowSolution(model.getObjVal() + conic.d, flows, time.perf_counter() - t0, status)
+
+
+def _model(conic: Conic, binary: np.ndarray) -> tuple[Model, list]:
+    """SCIP's model of min c.x + d, A x + s = b, s in the cones (a cone's rows: s_0 >= ||s_1:||)."""
+    model = Model()
+    model.hideOutput()
+    x = [
+        model.addVar(lb=0.0 if bj else None, ub=1.0 if bj else None, obj=float(cj), vtype="B" if bj else "C")
+        for cj, bj in zip(conic.c, binary)
+    ]
+    A = conic.A.tocsr()
+    A.eliminate_zeros()  # the pattern holds every query's entries; SCIP should see this one's only
+
+    def row(i):
+        lo, hi = A.indptr[i], A.indptr[i + 1]
+        return quicksum(float(a) * x[j] for a, j in zip(A.data[lo:hi], A.indices[lo:hi]))
+
+    for i in range(conic.zero):
+        model.addCons(row(i) == float(conic.b[i]))
+    for i in range(conic.zero, conic.zero + conic.nonneg):
+        model.addCons(row(i) <= float(conic.b[i]))
+    start = conic.zero + conic.nonneg
+    for k in conic.soc:
+        s = [model.addVar(lb=0.0 if j == 0 else None, ub=None) for j in range(k)]
+        for j in range(k):
+            model.addCons(s[j] + row(start + j) == float(conic.b[start + j]))
+        model.addCons(quicksum(v * v for v in s[1:]) <= s[0] * s[0])
+        start += k
+    return model, x

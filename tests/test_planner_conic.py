@@ -1,0 +1,130 @@
+"""The planner's conic path (conic.py, conic_gcs.py, micp.py) against the cvxpy programs it is taken
+from, against today's reference plan costs, and without compiling anything per query."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cvxpy as cp
+import numpy as np
+import pytest
+
+from lerobot_gcs_push.planner import GcsPlanner
+from lerobot_gcs_push.planner.conic import Infeasible, ParametricConic
+from lerobot_gcs_push.planner.restriction import Restriction
+from lerobot_gcs_push.scene import Scene, sample_initial_conditions
+
+SCENE = Scene()
+REFERENCE = json.loads((Path(__file__).parent / "test_planner_reference_costs.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def planner():
+    return GcsPlanner(SCENE)
+
+
+def _queries(planner, n, seed, sampler="uniform"):
+    return [planner.query(ic.box, ic.finger) for ic in sample_initial_conditions(SCENE, n, seed=seed, sampler=sampler)]
+
+
+def _rel(a, b):
+    return abs(a - b) / max(1.0, abs(b))
+
+
+@pytest.mark.parametrize("sampler", ["uniform", "hard"])
+def test_direct_relaxation_equals_cvxpy_solve(planner, sampler):
+    """Clarabel on the conic data, forbidden edges dropped, against cvxpy solving the program with their
+    flows bounded by 0: the same optimum."""
+    prog = planner.program("relaxation")
+    for q in _queries(planner, 10, seed=7, sampler=sampler):
+        prog.set_query(q.src, q.goal, q.allowed)
+        ref = prog.solve()
+        mine = planner.conic.relax(q.src, q.goal, q.allowed).flows
+        assert _rel(mine.value, ref.value) < 1e-6, (q, mine.value, ref.value)
+
+
+def test_path_restriction_equals_the_direct_restriction(planner):
+    """A path's restriction taken from the relaxation's conic data (y fixed, other edges dropped)
+    against restriction.py's own program of that path: same cost, same points, same infeasibility."""
+    rng = np.random.default_rng(3)
+    paths = planner.graph.simple_paths()
+    infeasible = 0
+    for q in _queries(planner, 6, seed=8):
+        conic = planner.conic.at(q.src, q.goal, q.allowed)
+        for k in rng.choice(len(paths), 8, replace=False):
+            path = tuple(paths[k])
+            ref = Restriction(planner.graph, path).solve(q.src, q.goal)
+            mine = planner.conic.restrict(conic, path, q.src, q.goal)
+            if not np.isfinite(ref.cost):
+                infeasible += 1
+                assert not np.isfinite(mine.cost), path
+                continue
+            assert _rel(mine.cost, ref.cost) < 1e-6, (path, mine.cost, ref.cost)
+            assert mine.vertices == ref.vertices
+            for v, x in ref.points.items():
+                np.testing.assert_allclose(mine.points[v], x, atol=1e-5)
+    assert infeasible > 0  # the comparison covered paths that the query rules out
+
+
+def test_fixing_variables_matches_cvxpy_with_equalities():
+    """Conic.fix on a small SOCP: the same optimum as cvxpy with the fixed values as constraints, and
+    Infeasible when a fixed value leaves a constant row violated."""
+    x, p = cp.Variable(3), cp.Parameter(2)
+    prob = cp.Problem(cp.Minimize(cp.norm(x[:2] - p) + x[2]), [x >= -1, x[2] >= x[0], x[1] <= 2])
+    data = ParametricConic(prob, [p], {"x": x})
+    theta = np.array([0.5, 3.0])
+    values = np.full(len(data.c_map), np.nan)
+    values[data.columns["x"].start] = 0.25
+    sol = data.at(theta).fix(values).solve()
+    p.value = theta
+    ref = cp.Problem(prob.objective, prob.constraints + [x[0] == 0.25]).solve(solver=cp.CLARABEL)
+    assert sol.value == pytest.approx(ref, rel=1e-7)
+    assert sol.x[data.columns["x"]][0] == 0.25
+    values[data.columns["x"].start + 1] = 2.5  # x[1] <= 2 violated
+    values[data.columns["x"].start + 2] = 0.0
+    with pytest.raises(Infeasible):
+        data.at(theta).fix(values)
+
+
+def test_micp_equals_cvxpy_scip(planner):
+    """SCIP on the MICP's conic data against cvxpy's SCIP interface on the same program."""
+    prog = planner.program("micp")
+    for q in _queries(planner, 3, seed=9):
+        prog.set_query(q.src, q.goal, q.allowed)
+        ref = prog.solve()
+        mine = planner.micp.solve(q.src, q.goal, q.allowed)
+        assert _rel(mine.value, ref.value) < 1e-4, (mine.value, ref.value)  # SCIP's tolerances
+        np.testing.assert_array_equal(mine.flows > 0.5, ref.flows > 0.5)
+
+
+@pytest.mark.parametrize("name", sorted(REFERENCE["sets"]))
+def test_plan_costs_unchanged_from_the_reference(planner, name):
+    """Plan costs recorded from the planner before its conic path existed (cvxpy programs, commit
+    745e4fa): relaxation + rounding, and the MICP on the first queries."""
+    data = REFERENCE["sets"][name]
+    goal = REFERENCE["goal"] if name == "goal" else None
+    for (box, finger), cost in zip(data["ics"], data["relaxation"]):
+        assert _rel(planner.plan(box, finger, goal=goal).cost, cost) < 1e-6, (box, finger)
+    for (box, finger), cost in list(zip(data["ics"], data.get("micp", [])))[:6]:
+        assert _rel(planner.plan(box, finger, goal=goal, method="micp").cost, cost) < 1e-6, (box, finger)
+
+
+def test_a_fresh_planner_plans_without_compiling(monkeypatch):
+    """Everything cvxpy compiles happens in the constructor: counted through the one entry point to
+    cvxpy's compilation, `Problem.get_problem_data`."""
+    calls = []
+    original = cp.Problem.get_problem_data
+
+    def counting(self, *args, **kwargs):
+        calls.append(1)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(cp.Problem, "get_problem_data", counting)
+    for method in ("relaxation", "micp"):
+        p = GcsPlanner(SCENE, method=method)
+        built = len(calls)
+        assert built > 0  # the hook sees compilation
+        for ic in sample_initial_conditions(SCENE, 4 if method == "micp" else 12, seed=21, sampler="hard"):
+            p.plan(ic.box, ic.finger)
+        assert len(calls) == built, method
