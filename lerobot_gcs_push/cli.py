@@ -33,7 +33,7 @@ class PlanConfig:
     goal: tuple[float, float] | None = None
     # A JSON list of {"box": [x, y], "finger": [x, y]} to plan in file order.
     initial_conditions: str | None = None
-    # relaxation (convex relaxation + rounding, ~30 ms) or micp (exact, SCIP).
+    # relaxation (convex relaxation + rounding, ~10 ms) or micp (exact, SCIP).
     method: str = "relaxation"
     # Print one JSON object per plan (one per line) instead of a summary.
     jsonl: bool = False

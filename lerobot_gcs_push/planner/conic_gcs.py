@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import cvxpy as cp
 import numpy as np
 
-from lerobot_gcs_push.planner.conic import Conic, Infeasible, ParametricConic
+from lerobot_gcs_push.planner.conic import Conic, Infeasible, ParametricConic, SolverCache
 from lerobot_gcs_push.planner.gcs import FlowSolution, GcsProgram, SolverError, free_coords
 from lerobot_gcs_push.planner.graph import ModeGraph
 from lerobot_gcs_push.planner.restriction import PathSolution
@@ -70,13 +70,15 @@ class ConicGcs:
         self.graph = graph
         self.data = data or parametric(graph)
         self.cols = EdgeColumns(graph, self.data)
+        self.solvers = SolverCache()
 
     def relax(self, src, goal, allowed) -> ConicQuery:
         """The relaxation of the query; raises SolverError when it has no optimum."""
         conic = self.at(src, goal, allowed)
         t0 = time.perf_counter()
         try:
-            sol = conic.fix(self.cols.fixed([i for i in range(len(allowed)) if allowed[i] <= 0], {})).solve()
+            dropped = tuple(i for i in range(len(allowed)) if allowed[i] <= 0)
+            sol = conic.fix(self.cols.fixed(dropped, {})).solve(self.solvers, dropped)
         except Infeasible:
             sol = None
         elapsed = time.perf_counter() - t0
@@ -97,9 +99,8 @@ class ConicGcs:
         on = set(edges)
         t0 = time.perf_counter()
         try:
-            sol = conic.fix(
-                self.cols.fixed([i for i in range(len(g.edges)) if i not in on], {i: 1.0 for i in edges})
-            ).solve()
+            off = [i for i in range(len(g.edges)) if i not in on]
+            sol = conic.fix(self.cols.fixed(off, {i: 1.0 for i in edges})).solve(self.solvers, edges)
         except Infeasible:
             return PathSolution(edges, vertices, np.inf, {}, time.perf_counter() - t0)
         elapsed = time.perf_counter() - t0

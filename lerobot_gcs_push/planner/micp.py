@@ -29,6 +29,7 @@ class ScipMicp:
         self.graph = graph
         self.data = parametric(graph, integer=True)
         self.cols = EdgeColumns(graph, self.data)
+        self.build_time_s = 0.0  # the last solve's model building, for the profile
 
     def solve(
         self,
