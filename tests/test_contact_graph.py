@@ -63,3 +63,21 @@ def test_contact_location_pieces_split_every_face():
     # From the start every (face, piece) is reachable; between layers every piece pair is joined.
     assert len(g.starts()) == 4 * 5 * 2
     assert len(g.frees) == 4 * 5 * 2 + 8 * 5 * 2
+
+
+def test_ranked_paths_enumerate_every_path_from_the_allowed_start():
+    from types import SimpleNamespace
+
+    from lerobot_gcs_push.contact.rounding import ranked_paths
+
+    g = build_graph(MODEL, layers=2)
+    flows = SimpleNamespace(
+        free_flow=np.zeros(len(g.frees)), contact_flow=np.zeros(len(g.contacts)), target_flow=np.zeros(len(g.contacts))
+    )
+    hot = next(f for f in g.starts() if g.frees[f].source == 1 and g.frees[f].target == 2)
+    flows.free_flow[hot] = 1.0
+    paths = ranked_paths(g, flows, allow=np.array([0.0, 1.0, 0.0, 0.0]))
+    # From one piece: 5 first free modes, each ending there or going on through one of 5 more.
+    assert len(paths) == 5 * (1 + 5) == len(set(paths))
+    assert all(g.frees[p.frees[0]].source == 1 for p in paths)
+    assert paths[0].frees[0] == hot  # the flow ranks first

@@ -168,3 +168,17 @@ def test_rounded_plan_lifts_into_the_relaxation(planner, plans):
         worst = max(float(np.max(c.violation(), initial=0.0)) for c in relax.problem.constraints)
         assert worst < 1e-6
         assert plan.lower_bound <= cost + 1e-6
+
+
+def test_near_goal_start_is_rescued_by_the_fallback(planner):
+    """At the goal but 0.02 rad off: the relaxation's favourite paths are infeasible (it never detects
+    infeasible modes); the ranked fallback finds a plan, and its bound stays below it."""
+    pose, finger = (0.08546293, 0.09799996, 1.58983568), (-3.30953286, 3.00449116)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plan = planner.plan(pose, finger)
+    assert plan.extra["fallback"]
+    assert np.allclose(plan.slider_final[:2], SCENE.goal, atol=1e-5)
+    assert plan.lower_bound <= plan.cost
+    end = integrate(pose, plan.pushes)
+    assert np.linalg.norm(end[:2] - plan.slider_final[:2]) < 0.03

@@ -18,7 +18,7 @@ from lerobot_gcs_push.contact.model import HeadingWindow, PushModel
 from lerobot_gcs_push.contact.non_collision import free_regions, knots_of
 from lerobot_gcs_push.contact.plan import ContactPlan, trace
 from lerobot_gcs_push.contact.relaxation import GraphRelaxation, contact_forms
-from lerobot_gcs_push.contact.rounding import Path, round_relaxation, solve_restriction
+from lerobot_gcs_push.contact.rounding import Path, ranked_paths, round_relaxation, solve_restriction
 from lerobot_gcs_push.scene import Scene
 
 
@@ -39,6 +39,7 @@ class ContactPlanner:
         seed: int = 0,
         window_margin: float | None = None,
         pieces: int = 1,
+        fallback_paths: int = 20,
     ):
         self.scene = scene
         self.model = PushModel.from_scene(scene)
@@ -52,11 +53,15 @@ class ContactPlanner:
         # inherit the relaxation's splits of the contact location.
         self.baseline_graph = build_graph(self.model, 1, 1)
         self.baseline_forms = contact_forms(self.model, self.baseline_graph, self.rot_weight, rlt)
+        # Rounding keeps a path's faces but lets the finger anywhere on each: the pieces tighten the
+        # bound, and a plan outside its piece is still a plan of the graph (the pieces cover the face).
+        self.rounding_forms = {(f, k): self.baseline_forms[f, 0] for f, k in self.forms}
         self.rng = np.random.default_rng(seed)
         self._relaxation = None
         self._rlt = rlt
         # Headings stay within window_margin of the start-to-goal arc (None: unrestricted, no chord cut).
         self.window_margin = window_margin
+        self.fallback_paths = fallback_paths
 
     @property
     def relaxation(self) -> GraphRelaxation:
@@ -114,7 +119,7 @@ class ContactPlanner:
             self.model,
             self.graph,
             self.regions,
-            self.forms,
+            self.rounding_forms,
             res,
             self.knots,
             self.per_region,
@@ -125,6 +130,31 @@ class ContactPlanner:
             self.rng,
             window,
         )
+        fallback = best is None
+        if fallback:
+            # The relaxation's values can mislead SNOPT (a mode it believes feasible, at the motion cone's
+            # edge): retry the paths carrying most flow from the straight-line guess before giving up.
+            for path in ranked_paths(self.graph, res, allow)[: self.fallback_paths]:
+                guess_c, guess_q = self._straight_line_guess(self.graph, path, pose, q, goal)
+                r = solve_restriction(
+                    self.model,
+                    self.graph,
+                    self.regions,
+                    self.rounding_forms,
+                    path,
+                    self.knots,
+                    self.per_region,
+                    pose,
+                    q,
+                    goal,
+                    guess_c,
+                    guess_q,
+                    window,
+                )
+                tried += 1
+                if r.success:
+                    best = r
+                    break
         t2 = time.perf_counter()
         if best is None:
             raise PlanningError(f"no sampled path's restriction solved ({tried} tried, bound {res.bound:.4f})")
@@ -140,6 +170,7 @@ class ContactPlanner:
                 "relaxation_s": t1 - t0,
                 "rounding_s": t2 - t1,
                 "relaxation_status": res.status,
+                "fallback": fallback,
                 "graph_path": {"frees": list(best.path.frees), "contacts": list(best.path.contacts)},
             },
         )
@@ -153,34 +184,12 @@ class ContactPlanner:
         u = goal[:2] - pose[:2]
         u = np.array([c * u[0] + s * u[1], -s * u[0] + c * u[1]])
         face = int(np.argmax([-(f.n @ u) for f in self.model.faces]))
-        graph, lam = self.baseline_graph, 0.5
+        graph = self.baseline_graph
         options = [k for k, v in enumerate(graph.frees) if v.layer == START and allow[v.source] and v.target == face]
         start_free = min(options, key=lambda k: len(graph.frees[k].route))
         contact = graph.contact_index(0, face)
         path = Path((start_free,), (contact,))
-        # Straight-line guess: poses interpolated start to goal, pushing mid-face.
-        w = np.linspace(0.0, 1.0, self.knots)
-        xs, ys, th = (pose[i] + w * (goal[i] - pose[i]) for i in range(3))
-        fn, ft = [], []
-        f = self.model.faces[face]
-        for k in range(self.knots - 1):
-            dw = np.array([xs[k + 1] - xs[k], ys[k + 1] - ys[k]])
-            ck, sk = np.cos(th[k]), np.sin(th[k])
-            db = np.array([ck * dw[0] + sk * dw[1], -sk * dw[0] + ck * dw[1]])
-            fn.append(-(f.n @ db))
-            ft.append(f.t @ db)
-        guess_c = {
-            "lam": lam,
-            "c": np.cos(th),
-            "s": np.sin(th),
-            "fn": np.array(fn),
-            "ft": np.array(ft),
-            "x": xs,
-            "y": ys,
-        }
-        n_q = knots_of(graph.frees[start_free].route, self.per_region)
-        end = finger_body(f, self.model, lam)
-        guess_q = q[None, :] + np.linspace(0, 1, n_q)[:, None] * (end - q)[None, :]
+        guess_c, guess_q = self._straight_line_guess(graph, path, pose, q, goal)
         r = solve_restriction(
             self.model,
             graph,
@@ -192,14 +201,48 @@ class ContactPlanner:
             pose,
             q,
             goal,
-            [guess_c],
-            [guess_q],
+            guess_c,
+            guess_q,
             self.window(pose, goal),
         )
         dt = time.perf_counter() - t0
         if not r.success:
             raise PlanningError("the baseline's SNOPT run found no feasible plan")
         return self._plan("baseline", r, pose, goal, -np.inf, dt, 1, {}, graph)
+
+    def _straight_line_guess(self, graph, path: Path, pose, q, goal):
+        """Poses interpolated from start to goal over the path's contact knots, each push mid-face, the
+        finger straight from where it is to the next contact point (penetrating, if it must: SNOPT fixes it)."""
+        n_c = len(path.contacts)
+        w = np.linspace(0.0, 1.0, n_c * (self.knots - 1) + 1)
+        traj = np.array([pose[i] + w * (goal[i] - pose[i]) for i in range(3)]).T
+        contacts, frees, finger = [], [], np.asarray(q, float)
+        for m, (fi, ci) in enumerate(zip(path.frees, path.contacts)):
+            face = self.model.faces[graph.contacts[ci].face]
+            seg = traj[m * (self.knots - 1) : (m + 1) * (self.knots - 1) + 1]
+            fn, ft = [], []
+            for k in range(self.knots - 1):
+                dw = seg[k + 1, :2] - seg[k, :2]
+                ck, sk = np.cos(seg[k, 2]), np.sin(seg[k, 2])
+                db = np.array([ck * dw[0] + sk * dw[1], -sk * dw[0] + ck * dw[1]])
+                fn.append(-(face.n @ db))
+                ft.append(face.t @ db)
+            contacts.append(
+                {
+                    "lam": 0.5,
+                    "c": np.cos(seg[:, 2]),
+                    "s": np.sin(seg[:, 2]),
+                    "fn": np.array(fn),
+                    "ft": np.array(ft),
+                    "x": seg[:, 0],
+                    "y": seg[:, 1],
+                }
+            )
+            n_q = knots_of(graph.frees[fi].route, self.per_region)
+            end = finger_body(face, self.model, 0.5)
+            frees.append(finger[None, :] + np.linspace(0, 1, n_q)[:, None] * (end - finger)[None, :])
+            finger = end
+        return contacts, frees
 
     def _plan(self, method, r, pose, goal, bound, dt, tried, extra, graph=None) -> ContactPlan:
         poses, fingers, kinds, modes, pushes = trace(self.model, graph or self.graph, r, pose)

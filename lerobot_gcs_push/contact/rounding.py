@@ -50,6 +50,26 @@ def sample_paths(graph: ContactGraph, res: RelaxationResult, count: int, rng: np
     return out
 
 
+def ranked_paths(graph: ContactGraph, res: RelaxationResult, allow) -> list[Path]:
+    """Every path of the graph from an allowed start, the ones carrying most relaxed flow first: the
+    rounding's last resort when the sampled paths' restrictions all fail."""
+    out: list[tuple[float, Path]] = []
+
+    def extend(frees, contacts, score):
+        c = contacts[-1]
+        out.append((score + res.target_flow[c], Path(tuple(frees), tuple(contacts))))
+        for f in graph.out_of(c):
+            n = graph.successor(f)
+            extend(frees + [f], contacts + [n], score + res.free_flow[f] + res.contact_flow[n])
+
+    for f in graph.starts():
+        if allow[graph.frees[f].source]:
+            n = graph.successor(f)
+            extend([f], [n], res.free_flow[f] + res.contact_flow[n])
+    out.sort(key=lambda t: -t[0])
+    return [p for _, p in out]
+
+
 def _walk(graph: ContactGraph, res: RelaxationResult, rng) -> Path | None:
     def pick(options, flows):
         w = np.maximum(np.asarray(flows, float), 0.0)
