@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 	  "$$interp" -m venv $(VENV) || exit 1; \
 	fi
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[test,ray]"
+	$(PY) -m pip install --quiet -e ".[test,ray,viz]"
 	@# torchcodec comes with lerobot but cannot load without a system FFmpeg; LeRobot then prints a long
 	@# traceback on every dataset it opens before falling back to PyAV. Absent, it falls back quietly.
 	@$(PY) -c "import torchcodec" 2>/dev/null || $(PY) -m pip uninstall --quiet -y torchcodec

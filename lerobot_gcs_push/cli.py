@@ -50,16 +50,19 @@ class PlanConfig:
 
 @dataclass
 class DemoConfig:
-    # GCS demonstrations to write (skipped when the dataset exists and overwrite is false).
-    episodes: int = 100
+    # The paper's whole protocol: 100 demonstrations and the experts on 20 initial conditions x 5 runs.
+    # Off, a quick look at the whole pipeline (a few minutes on 2 cores, install included): 20 and 5 x 1.
+    protocol: bool = False
+    # GCS demonstrations to write (skipped when the dataset exists and overwrite is false); default by protocol.
+    episodes: int | None = None
     # The dataset's LeRobot id (written to $HF_LEROBOT_HOME/<repo_id>).
     repo_id: str = "local/gcs_push_box"
     # Worker processes for generation and evaluation.
     workers: int = 2
-    # The experts' evaluation: initial conditions x runs, with and without disturbances.
-    num_initial_conditions: int = 20
-    # Runs per initial condition.
-    runs: int = 5
+    # The experts' evaluation: initial conditions x runs, with and without disturbances; default by protocol.
+    num_initial_conditions: int | None = None
+    # Runs per initial condition; default by protocol.
+    runs: int | None = None
     # Where the experts' and the policy's evaluations, videos and the side-by-side GIF go.
     output_dir: str = "outputs/demo"
     # A LeRobot pretrained_model directory to show beside GCS (empty: skip).
@@ -75,6 +78,10 @@ class DemoConfig:
         # Checked before the demonstrations are written, not minutes later when the step that needs it runs.
         from lerobot_gcs_push.evaluation import check_device, check_policy
 
+        quick, full = (20, 5, 1), (100, 20, 5)
+        for name, value in zip(("episodes", "num_initial_conditions", "runs"), full if self.protocol else quick):
+            if getattr(self, name) is None:
+                setattr(self, name, value)
         if min(self.episodes, self.workers, self.num_initial_conditions, self.runs) < 1:
             raise ValueError("episodes, workers, num_initial_conditions and runs must be >= 1")
         if self.policy:
@@ -175,13 +182,15 @@ def run_demo(cfg: DemoConfig) -> None:
     else:
         run_generate(gen)
     out = Path(cfg.output_dir)
+    # Apart, so that the quick look and the whole protocol each resume their own runs.
+    experts_dir = out / ("experts_protocol" if cfg.protocol else "experts")
     experts = evaluate(
         EvaluateConfig(
             policies=["gcs-open-loop", "gcs-closed-loop"],
             num_initial_conditions=cfg.num_initial_conditions,
             runs=cfg.runs,
             disturbances=True,
-            output_dir=str(out / "experts"),
+            output_dir=str(experts_dir),
             workers=cfg.workers,
             dataset=cfg.repo_id,
             overwrite=cfg.overwrite,
@@ -214,7 +223,7 @@ def run_demo(cfg: DemoConfig) -> None:
                 gif=policy_dir / f"side_by_side_ic{i:03d}.gif" if i == 0 else None,
             )
     print(f"\ndataset:        {root}")
-    print(f"GCS experts:    {out / 'experts'}/tables.md, figures beside it")
+    print(f"GCS experts:    {experts_dir}/tables.md, figures beside it")
     if cfg.policy:
         print(f"learned policy: {policy_dir}/tables.md; watch {policy_dir}/side_by_side_ic000.mp4")
     print(

@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import json
+import os
 import shutil
 import threading
 import time
@@ -114,6 +115,8 @@ class ImproveConfig:
     seed: int = 6000
     workers: int = 2
     device: str = "cpu"
+    # Training steps between checkpoints: what a kill can cost, and how often the resumable copy is made.
+    save_freq: int = 500
     base: BaseConfig = field(default_factory=BaseConfig)
     round: RoundConfig = field(default_factory=RoundConfig)
     validation: ValidationConfig = field(default_factory=ValidationConfig)
@@ -143,6 +146,18 @@ class ImproveConfig:
                 raise ValueError(f"{what} must be >= 1, got {n}")
         if self.stop.max_rounds < 0 or not self.stop.max_hours > 0:
             raise ValueError("stop.max_rounds must be >= 0 and stop.max_hours positive")
+
+
+def _settings(cfg: ImproveConfig) -> dict:
+    skip = ("workers", "device", "stop", "stop_after", "state_dir", "work_dir", "save_freq")
+    return _settings_of({k: v for k, v in asdict(cfg).items() if k not in skip})
+
+
+def _settings_of(settings: dict) -> dict:
+    # Paths compare as seen from the working directory, however they were typed.
+    return {
+        k: os.path.relpath(os.path.abspath(v)) if k in ("policy", "train_config") else v for k, v in settings.items()
+    }
 
 
 class StopRequested(Exception):
@@ -184,14 +199,12 @@ class Improver:
         self.cfg = cfg
         self.state_dir, self.work = Path(cfg.state_dir), Path(cfg.work_dir)
         self.state = State.load(self.state_dir / STATE_FILE)
-        # The settings that decide what a stage computes may not change under a resumed run.
-        wanted = {
-            k: v
-            for k, v in asdict(cfg).items()
-            if k not in ("workers", "device", "stop", "stop_after", "state_dir", "work_dir")
-        }
-        if self.state.settings and self.state.settings != wanted:
-            diff = sorted(k for k in wanted if self.state.settings.get(k) != wanted[k])
+        # The settings that decide what a stage computes may not change under a resumed run. Fields that
+        # a later version added are absent from an older state file and compare as equal.
+        wanted = _settings(cfg)
+        stored = _settings_of(self.state.settings)
+        diff = sorted(k for k in stored if k in wanted and stored[k] != wanted[k])
+        if diff:
             raise ValueError(
                 f"{self.state.path} was made with other settings ({', '.join(diff)}): use the same ones, "
                 "or another --state_dir"
@@ -207,6 +220,7 @@ class Improver:
         if self.state.done(name):
             return
         rec = self.state.stages.setdefault(name, {"done": False, "wall_s": 0.0})
+        self.state.save()  # a stage killed in its first seconds is still on record as begun
         print(f"\n== {name} (so far {self.state.hours:.2f} h)", flush=True)
         base, t0 = rec["wall_s"], time.monotonic()
         stop = threading.Event()
@@ -267,6 +281,7 @@ class Improver:
                 steps=steps,
                 seed=seed,
                 init_policy=init,
+                save_freq=self.cfg.save_freq,
                 lr=lr,
                 device=self.cfg.device,
                 partial=self.state_dir / f"{job}.partial",

@@ -99,7 +99,9 @@ def train(job: TrainJob, progress_desc: str = "training") -> Path:
             args.append(f"--policy.optimizer_lr={job.lr}")
         start = offset
     final = out / "checkpoints" / f"{job.steps - offset:06d}" / "pretrained_model"
-    env = os.environ | {"HF_HUB_OFFLINE": "1", "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", "2")}
+    # OpenMP threads that spin while waiting make training 4-10x slower beside any other work on the
+    # cores (configs/README.md, "Shared machines"); passive waiting costs nothing alone.
+    env = {"OMP_NUM_THREADS": "2", "OMP_WAIT_POLICY": "PASSIVE"} | os.environ | {"HF_HUB_OFFLINE": "1"}
     log = out.with_name(out.name + ".log")
     log.parent.mkdir(parents=True, exist_ok=True)
     bar = tqdm(total=job.steps, initial=start, desc=progress_desc, unit="step", dynamic_ncols=True)

@@ -6,6 +6,7 @@ import hashlib
 import json
 import os
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -196,3 +197,23 @@ def test_bad_initial_conditions_file_gets_its_own_message(tmp_path, content, nee
     )
     assert res.returncode == 2 and needle in res.stderr and "Traceback" not in res.stderr
     assert not (tmp_path / "ds").exists()
+
+
+def test_lerobot_dataset_viz_reads_a_generated_dataset(reference, tmp_path):
+    """LeRobot's own viewer (the `viz` extra, rerun) saves an episode of ours as a recording of it."""
+    import shutil
+
+    viz = shutil.which("lerobot-dataset-viz", path=str(Path(sys.executable).parent))
+    assert viz, "make install installs lerobot[viz], which provides lerobot-dataset-viz"
+    cfg, report = reference
+    args = [viz, "--repo-id", cfg.repo_id, "--episode-index", "1", "--save", "1", "--output-dir", str(tmp_path)]
+    subprocess.run([*args, "--num-workers", "0"], check=True, capture_output=True, timeout=300)
+    rrd = tmp_path / f"{cfg.repo_id.replace('/', '_')}_episode_1.rrd"
+    assert rrd.stat().st_size > 10_000  # 96x96 frames of the episode, not an empty recording
+    printed = subprocess.run(
+        [str(Path(sys.executable).parent / "rerun"), "rrd", "print", str(rrd)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert f'"{cfg.repo_id}/episode_1"' in printed.stdout + printed.stderr
