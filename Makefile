@@ -29,7 +29,7 @@ test: install
 	$(PY) -m pytest -q $(PYTEST_ARGS)
 
 demo: install
-	$(VENV)/bin/gcs-push demo
+	$(VENV)/bin/gcs-push demo $(DEMO_ARGS)
 
 bench: install
 	$(PY) -m benchmarks.run $(BENCH_ARGS)
