@@ -114,6 +114,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--knots", type=int, default=5)
     ap.add_argument("--pieces", type=int, default=1, help="contact-location intervals per face")
     ap.add_argument("--window-margin", type=float, default=None, help="heading window (rad) and its chord cut")
+    ap.add_argument("--edge-copies", action="store_true", help="one contact copy per entering edge (last layer)")
     ap.add_argument("--no-rlt", action="store_true")
     args = ap.parse_args(argv)
     stats = run(
@@ -125,6 +126,7 @@ def main(argv=None) -> dict:
         rlt=not args.no_rlt,
         pieces=args.pieces,
         window_margin=args.window_margin,
+        edge_copies=args.edge_copies,
     )
     for k, v in stats.items():
         print(f"{k:32s} {v:.4g}")

@@ -40,6 +40,7 @@ class ContactPlanner:
         window_margin: float | None = None,
         pieces: int = 1,
         fallback_paths: int = 20,
+        edge_copies: bool = False,
     ):
         self.scene = scene
         self.model = PushModel.from_scene(scene)
@@ -62,6 +63,7 @@ class ContactPlanner:
         # Headings stay within window_margin of the start-to-goal arc (None: unrestricted, no chord cut).
         self.window_margin = window_margin
         self.fallback_paths = fallback_paths
+        self.edge_copies = edge_copies
 
     @property
     def relaxation(self) -> GraphRelaxation:
@@ -74,6 +76,7 @@ class ContactPlanner:
                 self.rot_weight,
                 self._rlt,
                 self.window_margin is not None,
+                self.edge_copies,
             )
         return self._relaxation
 

@@ -39,7 +39,11 @@ class RelaxationResult:
     target_flow: np.ndarray
     relaxation: GraphRelaxation
 
-    def contact_guess(self, c: int) -> dict:
+    def contact_guess(self, c: int, via: int | None = None) -> dict:
+        """The contact vertex's values; for an edge-copied vertex, those of the copy entered from `via`."""
+        copy = self.relaxation.copies.get(via)
+        if copy is not None and self.relaxation.graph.successor(via) == c:
+            return copy.values(self.free_flow[via])
         return self.relaxation.contacts[c].values(self.contact_flow[c])
 
     def free_guess(self, f: int) -> dict:
@@ -56,6 +60,7 @@ class GraphRelaxation:
         rot_weight: float,
         rlt: bool = True,
         window: bool = True,
+        edge_copies: bool = False,
     ):
         self.model, self.graph = model, graph
         self.regions = free_regions(model)
@@ -70,10 +75,23 @@ class GraphRelaxation:
         self.phi_f = cp.Variable(len(graph.frees), nonneg=True)
         self.phi_t = cp.Variable(len(graph.contacts), nonneg=True)
         forms = contact_forms(model, graph, rot_weight, rlt)
+        # edge_copies: a last-layer contact vertex gets one copy per entering free vertex (the standard
+        # GCS edge copy) instead of one aggregate, so flows entering from different poses cannot trade
+        # their trajectories inside it.
+        copied = {c for c in range(len(graph.contacts)) if edge_copies and graph.into(c) and not graph.out_of(c)}
         self.contacts = [
-            RelaxedFaceContact(model.faces[v.face], model, forms[v.face, v.piece], knots, self.phi_c[k], self.arc)
+            None
+            if k in copied
+            else RelaxedFaceContact(model.faces[v.face], model, forms[v.face, v.piece], knots, self.phi_c[k], self.arc)
             for k, v in enumerate(graph.contacts)
         ]
+        self.copies = {}
+        for c in copied:
+            v = graph.contacts[c]
+            for f in graph.into(c):
+                self.copies[f] = RelaxedFaceContact(
+                    model.faces[v.face], model, forms[v.face, v.piece], knots, self.phi_f[f], self.arc
+                )
         self.frees = [
             RelaxedNonCollision(model, self.regions, v.route, per_region, self.phi_f[k], self.arc)
             for k, v in enumerate(graph.frees)
@@ -93,7 +111,22 @@ class GraphRelaxation:
             else:
                 cons += _on_face(model.faces[v.source], r, fr.q[0], phi, piece_range(graph, v.source_piece))
             cons += _on_face(model.faces[v.target], r, fr.q[-1], phi, piece_range(graph, v.target_piece))
+        for f, cc in self.copies.items():
+            fr = self.frees[f]
+            cons += cc.constraints
+            cons += [
+                cc.pose(False) == fr.pose,
+                cc.pose_moments(False) == fr.moments,
+                cc.finger() == fr.q[-1],
+                cc.pose(True) == self.phi_f[f] * self.goal,
+                cc.pose_moments(True) == self.phi_f[f] * self.goal_moments,
+            ]
+        for c in copied:
+            ins = graph.into(c)
+            cons += [self.phi_c[c] == cp.sum(self.phi_f[ins]), self.phi_t[c] == self.phi_c[c]]
         for c, rc in enumerate(self.contacts):
+            if rc is None:
+                continue
             cons += rc.constraints
             ins, outs = graph.into(c), graph.out_of(c)
             phi = self.phi_c[c]
@@ -111,7 +144,8 @@ class GraphRelaxation:
             ]
             if outs:
                 cons.append(rc.finger() == sum(self.frees[f].q[0] for f in outs))
-        self.cost = sum(rc.cost for rc in self.contacts) + sum(fr.cost for fr in self.frees)
+        self.cost = sum(rc.cost for rc in self.contacts if rc is not None) + sum(fr.cost for fr in self.frees)
+        self.cost = self.cost + sum(cc.cost for cc in self.copies.values())
         self.problem = cp.Problem(cp.Minimize(self.cost), cons)
 
     def set_query(self, start_pose, start_q, goal_pose, allow, window=None) -> None:

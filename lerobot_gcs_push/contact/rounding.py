@@ -184,7 +184,7 @@ def round_relaxation(
             start_pose,
             start_q,
             goal_pose,
-            [res.contact_guess(c) for c in path.contacts],
+            [res.contact_guess(c, via) for c, via in zip(path.contacts, path.frees)],
             [res.free_guess(f)["q"] for f in path.frees],
             window,
         )
