@@ -47,6 +47,41 @@ def random_starts(planner: ContactPlanner, n: int, seed: int) -> list[tuple[np.n
     return out
 
 
+def verify(scene: Scene, plan) -> bool:
+    """Independent checks of a plan: the continuous quasi-static model re-integrated from its pushes ends
+    within 3 cm / 0.03 rad of the plan's end; the finger touches the slider along pushes and clears it
+    (sampled) along free segments; the friction cone holds."""
+    kappa = scene.box_damping / scene.rot_damping
+    faces, shape, r = scene.shape.faces(), scene.shape, scene.finger_radius
+    pose = np.array(plan.slider_poses[0], float)
+    for push in plan.pushes:
+        a, b, n = faces[push["face"]]
+        t = (b - a) / np.linalg.norm(b - a)
+        p = a + push["lam"] * (b - a)
+        if np.any(np.abs(push["ft"]) > scene.finger_box_friction * push["fn"] + 1e-6):
+            return False
+        for fn, ft in zip(push["fn"], push["ft"]):
+            d = -fn * n + ft * t
+            w = kappa * (p[0] * d[1] - p[1] * d[0])
+            for _ in range(200):
+                th = pose[2] + 0.5 * w / 200
+                rot = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+                pose = pose + np.array([*(rot @ d) / 200, w / 200])
+    end = plan.slider_final
+    if np.linalg.norm(pose[:2] - end[:2]) > 0.03 or abs(pose[2] - end[2]) > 0.03:
+        return False
+    poses, fingers = plan.slider_poses, plan.finger_path
+    for k, kind in enumerate(plan.segment_kinds):
+        if kind == "push":
+            if abs(shape.signed_distance(poses[k + 1], fingers[k + 1]) - r) > 1e-4:
+                return False
+        else:
+            for w in np.linspace(0, 1, 15):
+                if shape.signed_distance(poses[k], (1 - w) * fingers[k] + w * fingers[k + 1]) < r - 1e-6:
+                    return False
+    return True
+
+
 def _p95(x) -> float:
     return float(np.percentile(x, 95)) if len(x) else float("nan")
 
@@ -61,7 +96,7 @@ def run(n: int = 20, seed: int = 0, slider: str = "box", **planner_kw) -> dict:
     planner = ContactPlanner(scene, **planner_kw)
     warm_up_s = planner.warm_up() + (time.perf_counter() - t0)
     times, relax_times, round_times, gaps, costs, base_costs, base_times, ratio = [], [], [], [], [], [], [], []
-    rounded = base_ok = 0
+    rounded = base_ok = verified = 0
     for k, (pose, finger) in enumerate(random_starts(planner, n, seed)):
         plan = base = None
         for method in ("relaxation", "baseline") if k % 2 == 0 else ("baseline", "relaxation"):
@@ -74,6 +109,7 @@ def run(n: int = 20, seed: int = 0, slider: str = "box", **planner_kw) -> dict:
                 pass
         if plan is not None:
             rounded += 1
+            verified += verify(scene, plan)
             times.append(plan.solve_time_s)
             relax_times.append(plan.extra["relaxation_s"])
             round_times.append(plan.extra["rounding_s"])
@@ -97,6 +133,7 @@ def run(n: int = 20, seed: int = 0, slider: str = "box", **planner_kw) -> dict:
         "gap_p95": _p95(gaps),
         "gap_max": float(np.max(gaps)) if gaps else float("nan"),
         "rounding_success_frac": rounded / n,
+        "verified_frac": verified / n,  # plans passing `verify` (dynamics, contact, clearance, friction)
         "cost_median": _med(costs),
         "baseline_success_frac": base_ok / n,
         "baseline_median_s": _med(base_times),

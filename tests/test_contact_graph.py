@@ -81,3 +81,29 @@ def test_ranked_paths_enumerate_every_path_from_the_allowed_start():
     assert len(paths) == 5 * (1 + 5) == len(set(paths))
     assert all(g.frees[p.frees[0]].source == 1 for p in paths)
     assert paths[0].frees[0] == hot  # the flow ranks first
+
+
+def test_tee_pieces_clear_the_tee_and_join_consecutive_faces():
+    scene = Scene(slider="tee", rotates=True)
+    model = PushModel.from_scene(scene)
+    regions = free_regions(model)
+    assert len(regions) == 8
+    # The four faces meeting the stem-bar corners keep the finger a radius from the concave end.
+    concave = [f.index for f in model.faces if f.lam_lo > 0 or f.lam_hi < 1]
+    assert len(concave) == 4
+    rng = np.random.default_rng(1)
+    pts = rng.uniform(-3, 3, size=(6000, 2))
+    for reg in regions:
+        inside = [p for p in pts if reg.contains(p)]
+        assert len(inside) > 50
+        for p in inside:
+            assert scene.shape.signed_distance((0, 0, 0), p) >= scene.finger_radius - 1e-9
+    for i in range(8):
+        assert any(regions[i].contains(p) and regions[(i + 1) % 8].contains(p) for p in pts), i
+    # Touching a face anywhere in its allowed span is collision-free against the whole T.
+    from lerobot_gcs_push.contact.face_contact import finger_body
+
+    for f in model.faces:
+        for lam in np.linspace(f.lam_lo, f.lam_hi, 7):
+            q = finger_body(f, model, lam)
+            assert scene.shape.signed_distance((0, 0, 0), q) >= scene.finger_radius - 1e-9

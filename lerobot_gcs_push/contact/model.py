@@ -27,6 +27,10 @@ class Face:
     e: np.ndarray  # b - a: the contact point is a + lam * e, lam in [0, 1]
     n: np.ndarray  # outward unit normal
     t: np.ndarray  # unit tangent, along e
+    # Where the finger may touch: a concave (reflex) end of the face keeps the finger a radius away, or it
+    # would overlap the neighbouring face (the T's stem sides and bar undersides).
+    lam_lo: float = 0.0
+    lam_hi: float = 1.0
 
     @property
     def offset(self) -> float:
@@ -51,9 +55,15 @@ class PushModel:
     def from_scene(cls, scene: Scene) -> PushModel:
         shape = scene.shape
         faces = []
-        for i, (a, b, n) in enumerate(shape.faces()):
-            e = np.asarray(b - a, float)
-            faces.append(Face(i, np.asarray(a, float), e, np.asarray(n, float), e / np.linalg.norm(e)))
+        raw = shape.faces()
+        edges = [np.asarray(b - a, float) for a, b, _ in raw]
+        r = scene.finger_radius
+        for i, (a, _, n) in enumerate(raw):
+            e, length = edges[i], float(np.linalg.norm(edges[i]))
+            concave_start = cross(edges[i - 1], e) < 0
+            concave_end = cross(e, edges[(i + 1) % len(edges)]) < 0
+            lo, hi = (r / length if concave_start else 0.0), (1 - r / length if concave_end else 1.0)
+            faces.append(Face(i, np.asarray(a, float), e, np.asarray(n, float), e / length, lo, hi))
         b, b_theta = scene.box_damping, scene.rot_damping
         # The square is the only symmetric shape today; derived here, not a Scene field (see the report).
         symmetry = 4 if shape.name == "box" else 1

@@ -2,9 +2,11 @@
 space, written in the slider's frame (where they do not depend on the slider's pose, so the finger's
 constraints stay linear however the slider is turned).
 
-For a convex slider the pieces are the half-planes beyond each face pushed out by the finger radius:
-the slider lies behind every face's line, so a segment inside one half-plane never touches it, and
-neighbouring half-planes overlap at the corner between them. A route is a chain of such pieces.
+One piece per face: the half-plane beyond the face pushed out by the finger radius, cut by the same
+half-plane of each neighbour that meets it at a concave corner. For a convex slider (and the T, whose
+only concave corners are where the stem meets the bar) every part lies behind one of those lines, so a
+segment inside a piece never touches the slider (tests/test_contact_graph.py samples this), and
+neighbouring pieces overlap at the corner between them. A route is a chain of pieces.
 """
 
 from __future__ import annotations
@@ -29,14 +31,18 @@ class Region:
 
 
 def free_regions(model: PushModel) -> list[Region]:
-    if not model.convex:
-        raise NotImplementedError("free-space pieces are derived for convex sliders only (the T needs hand-drawn ones)")
     out = []
-    bound = model.finger_reach
+    bound, r = model.finger_reach, model.finger_radius
+    faces = model.faces
     box_a = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
-    for f in model.faces:
-        a = np.vstack([-f.n[None, :], box_a])
-        b = np.concatenate([[-(f.offset + model.finger_radius)], np.full(4, bound)])
+    for i, f in enumerate(faces):
+        cuts = [f]
+        if f.lam_lo > 0:
+            cuts.append(faces[i - 1])
+        if f.lam_hi < 1:
+            cuts.append(faces[(i + 1) % len(faces)])
+        a = np.vstack([-g.n[None, :] for g in cuts] + [box_a])
+        b = np.concatenate([[-(g.offset + r) for g in cuts], np.full(4, bound)])
         out.append(Region(a, b))
     return out
 

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import time
 
+import cvxpy as cp
 import numpy as np
 
-from lerobot_gcs_push.contact.face_contact import finger_body
+from lerobot_gcs_push.contact.face_contact import MAX_STEP_ROTATION, finger_body
 from lerobot_gcs_push.contact.graph import START, build_graph
 from lerobot_gcs_push.contact.model import HeadingWindow, PushModel
 from lerobot_gcs_push.contact.non_collision import free_regions, knots_of
@@ -115,8 +116,17 @@ class ContactPlanner:
     def plan(self, slider_pose, finger) -> ContactPlan:
         pose, q, goal, allow = self.query(slider_pose, finger)
         t0 = time.perf_counter()
+        capacity = self.layers * (self.knots - 1) * MAX_STEP_ROTATION
+        if abs(goal[2] - pose[2]) > capacity:
+            raise PlanningError(
+                f"turning {abs(goal[2] - pose[2]):.2f} rad exceeds the graph's {capacity:.2f} rad "
+                f"({self.layers} layers x {self.knots - 1} steps x {MAX_STEP_ROTATION} rad): add knots or layers"
+            )
         window = self.window(pose, goal)
-        res = self.relaxation.solve(pose, q, goal, allow, window)
+        try:
+            res = self.relaxation.solve(pose, q, goal, allow, window)
+        except cp.error.SolverError as err:
+            raise PlanningError(f"the relaxation failed: {err}") from None
         t1 = time.perf_counter()
         best, tried = round_relaxation(
             self.model,

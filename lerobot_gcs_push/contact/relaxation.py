@@ -109,8 +109,10 @@ class GraphRelaxation:
                     fr.q[0] == phi * self.start_q,
                 ]
             else:
-                cons += _on_face(model.faces[v.source], r, fr.q[0], phi, piece_range(graph, v.source_piece))
-            cons += _on_face(model.faces[v.target], r, fr.q[-1], phi, piece_range(graph, v.target_piece))
+                src = model.faces[v.source]
+                cons += _on_face(src, r, fr.q[0], phi, piece_range(graph, v.source_piece, src))
+            dst = model.faces[v.target]
+            cons += _on_face(dst, r, fr.q[-1], phi, piece_range(graph, v.target_piece, dst))
         for f, cc in self.copies.items():
             fr = self.frees[f]
             cons += cc.constraints
@@ -182,14 +184,16 @@ class GraphRelaxation:
         )
 
 
-def piece_range(graph: ContactGraph, piece: int) -> tuple[float, float]:
-    return piece / graph.pieces, (piece + 1) / graph.pieces
+def piece_range(graph: ContactGraph, piece: int, face) -> tuple[float, float]:
+    """The piece's interval of lam, within where the finger may touch the face."""
+    w = face.lam_hi - face.lam_lo
+    return face.lam_lo + w * piece / graph.pieces, face.lam_lo + w * (piece + 1) / graph.pieces
 
 
 def contact_forms(model: PushModel, graph: ContactGraph, rot_weight: float, rlt: bool) -> dict:
     """The step forms of every (face, lam piece)."""
     return {
-        (f.index, k): step_forms(f, model, rot_weight, rlt, piece_range(graph, k))
+        (f.index, k): step_forms(f, model, rot_weight, rlt, piece_range(graph, k, f))
         for f in model.faces
         for k in range(graph.pieces)
     }
