@@ -12,6 +12,7 @@ import pytest
 
 from lerobot_gcs_push.planner import GcsPlanner
 from lerobot_gcs_push.planner.conic import Infeasible, ParametricConic
+from lerobot_gcs_push.planner.conic_gcs import CACHE_ENV
 from lerobot_gcs_push.planner.restriction import Restriction
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
@@ -110,9 +111,11 @@ def test_plan_costs_unchanged_from_the_reference(planner, name):
         assert _rel(planner.plan(box, finger, goal=goal, method="micp").cost, cost) < 1e-6, (box, finger)
 
 
-def test_a_fresh_planner_plans_without_compiling(monkeypatch):
-    """Everything cvxpy compiles happens in the constructor: counted through the one entry point to
-    cvxpy's compilation, `Problem.get_problem_data`."""
+@pytest.fixture
+def compilations(monkeypatch, tmp_path):
+    """Calls to cvxpy's one entry point to compilation, `Problem.get_problem_data`, with the planner's
+    cache of conic data in an empty directory."""
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     calls = []
     original = cp.Problem.get_problem_data
 
@@ -121,10 +124,32 @@ def test_a_fresh_planner_plans_without_compiling(monkeypatch):
         return original(self, *args, **kwargs)
 
     monkeypatch.setattr(cp.Problem, "get_problem_data", counting)
+    return calls
+
+
+def test_a_fresh_planner_plans_without_compiling(compilations):
+    """Everything cvxpy compiles happens in the constructor, and a second planner reads it from the
+    cache: no compilation at all, the same plans."""
+    costs = {}
     for method in ("relaxation", "micp"):
         p = GcsPlanner(SCENE, method=method)
-        built = len(calls)
+        built = len(compilations)
         assert built > 0  # the hook sees compilation
-        for ic in sample_initial_conditions(SCENE, 4 if method == "micp" else 12, seed=21, sampler="hard"):
-            p.plan(ic.box, ic.finger)
-        assert len(calls) == built, method
+        ics = sample_initial_conditions(SCENE, 3 if method == "micp" else 12, seed=21, sampler="hard")
+        costs[method] = [p.plan(ic.box, ic.finger).cost for ic in ics]
+        assert len(compilations) == built, method
+    before = len(compilations)
+    for method in ("relaxation", "micp"):
+        p = GcsPlanner(SCENE, method=method)
+        ics = sample_initial_conditions(SCENE, len(costs[method]), seed=21, sampler="hard")
+        assert [p.plan(ic.box, ic.finger).cost for ic in ics] == costs[method]
+    assert len(compilations) == before
+
+
+def test_the_cache_tells_graphs_apart(compilations, tmp_path):
+    """Another scene (a longer transition buffer) is another graph: its own conic data, other plans."""
+    GcsPlanner(SCENE)
+    other = GcsPlanner(Scene(transition_buffer=0.3))
+    assert len(list(tmp_path.glob("gcs-relaxation-*.npz"))) == 2
+    box, finger = (2.0, -1.0), (-3.0, 0.0)
+    assert other.plan(box, finger).cost > GcsPlanner(SCENE).plan(box, finger).cost + 0.1

@@ -10,7 +10,10 @@ query forbids, or all edges off a path): the subproblem is the same program, onl
 
 from __future__ import annotations
 
+import json
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import clarabel
 import cvxpy as cp
@@ -195,6 +198,35 @@ class ParametricConic:
         self.b_map = _affine(np.stack(b, axis=1))
         self.c_map = _affine(np.stack(c, axis=1))
         self.d_map = _affine(np.array(d, float)[None])[0]
+
+    _ARRAYS = ("boolean", "indices", "indptr", "A_map", "b_map", "c_map", "d_map")
+
+    def save(self, path: Path) -> None:
+        """Write to `path` (.npz) atomically: processes that load it meanwhile see the old file or this."""
+        meta = {
+            "zero": self.zero,
+            "nonneg": self.nonneg,
+            "soc": self.soc,
+            "shape": list(self.shape),
+            "sizes": self.sizes,
+            "columns": {k: [v.start, v.stop] for k, v in self.columns.items()},
+        }
+        tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+        with open(tmp, "wb") as f:
+            np.savez(f, meta=np.array(json.dumps(meta)), **{k: getattr(self, k) for k in self._ARRAYS})
+        os.replace(tmp, path)
+
+    @classmethod
+    def load(cls, path: Path) -> ParametricConic:
+        out = cls.__new__(cls)
+        with np.load(path) as f:
+            for k in cls._ARRAYS:
+                setattr(out, k, f[k])
+            meta = json.loads(str(f["meta"]))
+        out.zero, out.nonneg, out.soc, out.sizes = meta["zero"], meta["nonneg"], meta["soc"], meta["sizes"]
+        out.shape = tuple(meta["shape"])
+        out.columns = {k: slice(*v) for k, v in meta["columns"].items()}
+        return out
 
     @staticmethod
     def _values(params, theta) -> dict:
