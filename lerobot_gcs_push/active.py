@@ -24,8 +24,9 @@ import numpy as np
 
 from lerobot_gcs_push.dataset import GenerateConfig, GenerateReport, dataset_root, generate
 from lerobot_gcs_push.evaluation import GCS_POLICIES, read_runs
-from lerobot_gcs_push.expert import plannable
+from lerobot_gcs_push.expert import check_gcs_expert, plannable
 from lerobot_gcs_push.files import atomic_path
+from lerobot_gcs_push.registration import ENV_ID, SCENES
 from lerobot_gcs_push.scene import Scene
 
 
@@ -125,16 +126,33 @@ def branch_states(records: list[dict], cfg: CollectConfig, scene: Scene | None =
     return out
 
 
+def rollouts_env_id(folders: list[str]) -> str:
+    """The env the rollouts ran in (from each folder's settings.json; folders from before the env was
+    recorded ran in the box's): the states to label are that env's, so the expert must act in it too."""
+    ids = set()
+    for folder in folders:
+        path = Path(folder) / "settings.json"
+        ids.add(json.loads(path.read_text()).get("env_id", ENV_ID) if path.is_file() else ENV_ID)
+    if len(ids) > 1:
+        raise ValueError(
+            f"the rollouts {folders} ran in different envs ({', '.join(sorted(ids))}): collect one at a time"
+        )
+    return ids.pop()
+
+
 def collect(cfg: CollectConfig) -> tuple[GenerateReport, list[dict]]:
     """Branch states from the rollouts, labelled by the closed-loop GCS expert, as a LeRobotDataset."""
+    env_id = rollouts_env_id(cfg.rollouts)
+    check_gcs_expert(env_id, "collect labels the policy's states with it")
     records = []
     for folder in cfg.rollouts:
         for rec in read_runs(Path(folder) / "runs.jsonl"):
             records.append(rec | {"_source": str(folder)})
-    states = branch_states(records, cfg)
+    states = branch_states(records, cfg, SCENES[env_id])
     if not states:
         raise ValueError(f"no branch states in {cfg.rollouts}: did the evaluation record regret for a learned policy?")
     gen = GenerateConfig(
+        env_id=env_id,
         episodes=len(states),
         repo_id=cfg.repo_id,
         root=cfg.root,

@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_gcs_push.files import atomic_path
+from lerobot_gcs_push.registration import ENV_ID, SCENES
 from lerobot_gcs_push.scene import (
-    TASK,
     Disturbances,
     Scene,
     check_sampler,
@@ -43,10 +43,15 @@ from lerobot_gcs_push.scene import (
 EPISODES_META = "meta/gcs_push_episodes.jsonl"
 SETTINGS_META = "meta/gcs_push_settings.json"  # the settings a finished dataset was made with (see _finished)
 FEATURE_KEYS = ("observation.image", "observation.state", "observation.environment_state", "action")
+# Settings a dataset or work folder made before the field existed holds implicitly.
+_IMPLICIT_SETTINGS = {"env_id": ENV_ID}
 
 
 @dataclass
 class GenerateConfig:
+    # The registered env to record in: GcsPushBox-v0 (the box that cannot turn), GcsPushBoxSE2-v0 or
+    # GcsPushT-v0 (rotating sliders; their GCS expert is not there yet).
+    env_id: str = ENV_ID
     # Successful demonstrations to write (failed rollouts are left out). Default: 100 from the sampler,
     # or as many as --initial_conditions has entries.
     episodes: int | None = None
@@ -64,9 +69,9 @@ class GenerateConfig:
     method: str = "relaxation"
     # Initial conditions: sobol (space-filling), uniform (the paper's) or hard (see scene.py).
     sampler: str = "sobol"
-    # A JSON list of {"box", "finger"} to use instead of the sampler (e.g. the policy states that
-    # `gcs-push collect` picked); its entries are tried once each, in order, until `episodes` succeed,
-    # and failures are left out.
+    # A JSON list of {"box", "finger"} (and "heading" for a rotating slider) to use instead of the sampler
+    # (e.g. the policy states that `gcs-push collect` picked); its entries are tried once each, in order,
+    # until `episodes` succeed, and failures are left out.
     initial_conditions: str | None = None
     # Stop once this many frames are written (an equal-cost control); episodes is then an upper bound.
     frames: int | None = None
@@ -96,6 +101,10 @@ class GenerateConfig:
     shard_size: int = 10
 
     def __post_init__(self) -> None:
+        from lerobot_gcs_push.expert import EXPERTS
+        from lerobot_gcs_push.rollout import check_env_id
+
+        check_env_id(self.env_id)
         ics = load_initial_conditions(self.initial_conditions) if self.initial_conditions else None
         if self.episodes is None:
             self.episodes = len(ics) if ics else 100
@@ -107,8 +116,6 @@ class GenerateConfig:
             raise ValueError("choose one of overwrite and resume, not both")
         if "/" not in self.repo_id:
             raise ValueError(f"repo_id must look like 'owner/name', got {self.repo_id!r}")
-        from lerobot_gcs_push.expert import EXPERTS
-
         if self.expert not in EXPERTS:
             raise ValueError(f"unknown expert {self.expert!r}: choose one of {EXPERTS}")
         check_sampler(self.sampler)
@@ -121,9 +128,11 @@ class GenerateConfig:
         if self.fps <= 0 or per_s % self.fps:  # an env step is a whole number of disturbance ticks
             raise ValueError(f"fps must divide {per_s}, got {self.fps}")
         if ics:  # refused before any worker starts, each entry named
-            scene = Scene()
+            scene = SCENES[self.env_id]
             for i, ic in enumerate(ics):
-                scene.validate_state(ic["box"], ic["finger"], what=f"initial condition {i}")
+                scene.validate_state(
+                    ic["box"], ic["finger"], heading=ic.get("heading", 0.0), what=f"initial condition {i}"
+                )
         if self.frames is not None and self.frames < 1:
             raise ValueError(f"frames must be >= 1, got {self.frames}")
         if self.shard_size < 1:
@@ -148,7 +157,9 @@ def dataset_root(cfg: GenerateConfig) -> Path:
     return Path(cfg.root).expanduser() if cfg.root else lerobot_home() / cfg.repo_id
 
 
-def features(image_size: int) -> dict:
+def features(scene: Scene, image_size: int) -> dict:
+    """The dataset's features; the environment state is the box's position, or a rotating slider's pose."""
+    slider = ["slider_x", "slider_y", "slider_heading"] if scene.rotates else ["box_x", "box_y"]
     return {
         "observation.image": {
             "dtype": "image",
@@ -156,9 +167,30 @@ def features(image_size: int) -> dict:
             "names": ["height", "width", "channel"],
         },
         "observation.state": {"dtype": "float32", "shape": (2,), "names": ["finger_x", "finger_y"]},
-        "observation.environment_state": {"dtype": "float32", "shape": (2,), "names": ["box_x", "box_y"]},
+        "observation.environment_state": {"dtype": "float32", "shape": (len(slider),), "names": slider},
         "action": {"dtype": "float32", "shape": (2,), "names": ["finger_target_x", "finger_target_y"]},
     }
+
+
+class EpisodeFrames:
+    """A rollout's frames as the dataset stores them; pass it to `rollout` as `on_step`."""
+
+    def __init__(self, scene: Scene):
+        self.rotates = scene.rotates
+        self.frames: dict[str, list] = {k: [] for k in FEATURE_KEYS}
+
+    def __call__(self, obs, action, info) -> None:
+        state = info["slider_pose"] if self.rotates else info["box"]
+        self.frames["observation.image"].append(obs["pixels"])
+        self.frames["observation.state"].append(np.asarray(obs["agent_pos"], np.float32))
+        self.frames["observation.environment_state"].append(np.asarray(state, np.float32))
+        self.frames["action"].append(np.asarray(action, np.float32))
+
+    def __len__(self) -> int:
+        return len(self.frames["action"])
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {k: np.stack(v) for k, v in self.frames.items()}
 
 
 # --- one shard of episodes, in a worker ----------------------------------------------------------
@@ -176,7 +208,7 @@ def _init_worker(cfg_dict: dict, work_path: str, shards_path: str) -> None:
 
     cfg = GenerateConfig(**cfg_dict)
     env = gym.make(
-        "GcsPushBox-v0",
+        cfg.env_id,
         fps=cfg.fps,
         image_size=cfg.image_size,
         disturbances=cfg.disturbances,
@@ -246,16 +278,10 @@ def _run_episode(job: tuple[int, dict]) -> dict:
 
     index, ic = job
     env, expert, cfg = _WORKER["env"], _WORKER["expert"], _WORKER["cfg"]
-    frames: dict[str, list] = {k: [] for k in FEATURE_KEYS}
-
-    def record(obs, action, info):
-        frames["observation.image"].append(obs["pixels"])
-        frames["observation.state"].append(np.asarray(obs["agent_pos"], np.float32))
-        frames["observation.environment_state"].append(np.asarray(info["box"], np.float32))
-        frames["action"].append(np.asarray(action, np.float32))
-
+    frames = EpisodeFrames(env.scene)
     t0 = time.perf_counter()
-    result = rollout(env, expert, ic["box"], ic["finger"], seed=episode_seed(cfg.seed, index), on_step=record)
+    seed = episode_seed(cfg.seed, index)
+    result = rollout(env, expert, ic["box"], ic["finger"], seed=seed, on_step=frames, heading=ic.get("heading"))
     plan = result["plan"]
     meta = {
         "index": index,
@@ -269,11 +295,11 @@ def _run_episode(job: tuple[int, dict]) -> dict:
         "plan_lower_bound": plan.lower_bound,
         "modes": plan.modes,
         "replans": result["replans"],
-        "num_frames": len(frames["action"]),
+        "num_frames": len(frames),
         "wall_time_s": time.perf_counter() - t0,
         "disturbances": result["disturbances"],
     }
-    arrays = {k: np.stack(v) for k, v in frames.items()} if result["success"] else {}
+    arrays = frames.arrays() if result["success"] else {}
     # The worker compresses and saves its own episode; only the metadata travels back.
     _WORKER["work"].save({"meta": meta, "arrays": arrays})
     return meta
@@ -297,7 +323,7 @@ class WorkDir:
                     "or --overwrite=true to start again"
                 )
             old = json.loads(self.settings_file().read_text()) if self.settings_file().exists() else None
-            if old is not None and old != settings:
+            if old is not None and _IMPLICIT_SETTINGS | old != settings:
                 raise ValueError(f"--resume with different settings than the interrupted run: {_diff(old, settings)}")
         self.path.mkdir(parents=True, exist_ok=True)
         with atomic_path(self.settings_file()) as tmp:
@@ -340,9 +366,11 @@ class GenerateReport:
 def generate(cfg: GenerateConfig) -> GenerateReport:
     from lerobot.datasets.aggregate import aggregate_datasets  # noqa: F401  (imported here, not in the merge's time)
 
+    from lerobot_gcs_push.expert import check_gcs_expert
     from lerobot_gcs_push.workers import open_pool
 
-    scene = Scene()
+    check_gcs_expert(cfg.env_id, "the demonstrations are its rollouts")
+    scene = SCENES[cfg.env_id]
     root = dataset_root(cfg)
     work = WorkDir(root.with_name(root.name + ".work"))
     shards = root.with_name(root.name + ".shards")
@@ -382,7 +410,8 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
 
     t0 = time.perf_counter()
     if cfg.initial_conditions:
-        ics = [{"box": ic["box"], "finger": ic["finger"]} for ic in load_initial_conditions(cfg.initial_conditions)]
+        keys = ("box", "finger", "heading")  # a file's other keys (a branch state's source) stay out of the jobs
+        ics = [{k: ic[k] for k in keys if k in ic} for ic in load_initial_conditions(cfg.initial_conditions)]
     else:
         max_attempts = int(np.ceil(cfg.episodes * cfg.max_attempts_factor)) + 10
         ics = [
@@ -527,7 +556,7 @@ def _finished(cfg: GenerateConfig, root: Path, settings: dict) -> GenerateReport
     file = root / SETTINGS_META
     if not file.exists():
         raise FileExistsError(f"a dataset already exists at {root}, made before its settings were recorded: {hint}")
-    held = json.loads(file.read_text())
+    held = _IMPLICIT_SETTINGS | json.loads(file.read_text())
     if held != wanted:
         raise FileExistsError(
             f"the finished dataset at {root} was made with other settings {_diff(held, wanted)}: {hint}"
@@ -662,10 +691,12 @@ class _Writer:
     def __init__(self, cfg: GenerateConfig, root: Path):
         from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
+        scene = SCENES[cfg.env_id]
+        self.task = scene.task
         self.ds = LeRobotDataset.create(
             repo_id=cfg.repo_id,
             fps=cfg.fps,
-            features=features(cfg.image_size),
+            features=features(scene, cfg.image_size),
             root=root,
             robot_type="gcs_push_finger",
             use_videos=False,
@@ -674,7 +705,7 @@ class _Writer:
 
     def add(self, arrays: dict[str, np.ndarray]) -> None:
         for t in range(len(arrays["action"])):
-            self.ds.add_frame({k: arrays[k][t] for k in FEATURE_KEYS} | {"task": TASK})
+            self.ds.add_frame({k: arrays[k][t] for k in FEATURE_KEYS} | {"task": self.task})
         with _batched_image_embedding():
             self.ds.save_episode()
 

@@ -1,5 +1,9 @@
 """The paper's evaluation protocol (section IV) for any set of policies: records, tables, figures.
 
+In any registered env (`env_id`): the box that cannot turn is scored as in the paper, a rotating slider by
+the env's coverage rule, with its heading and pose in the records; the GCS experts and regret are the
+box's only, for now.
+
 Policies: `gcs-open-loop` (plan once, execute), `gcs-closed-loop` (replan after disturbances), or a
 LeRobot `pretrained_model` directory (loaded through LeRobot's own factory and processors; its action
 chunks run exactly as in `lerobot-eval`). With `disturbances`, each closed-loop or learned policy is also
@@ -20,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_gcs_push.files import atomic_path
+from lerobot_gcs_push.registration import ENV_ID, SCENES
 from lerobot_gcs_push.scene import (
     TASK,
     Scene,
@@ -84,10 +89,14 @@ def check_device(device: str) -> str:
 
 @dataclass
 class EvaluateConfig:
+    # The registered env: GcsPushBox-v0 (the box that cannot turn), GcsPushBoxSE2-v0 or GcsPushT-v0
+    # (rotating sliders, which succeed by coverage; no GCS expert or regret for them yet).
+    env_id: str = ENV_ID
     # gcs-open-loop, gcs-closed-loop, or LeRobot pretrained_model directories:
     # --policies='[gcs-open-loop,policies/diffusion_cpu]'.
     policies: list[str] = field(default_factory=lambda: ["gcs-open-loop"])
-    # A JSON list of {"box": [x, y], "finger": [x, y]}; default: sampled with `sampler` and `seed`.
+    # A JSON list of {"box": [x, y], "finger": [x, y]} (and "heading" for a rotating slider); default:
+    # sampled from the env's scene with `sampler` and `seed`.
     initial_conditions: str | None = None
     # How many initial conditions to sample (without initial_conditions).
     num_initial_conditions: int = 20
@@ -99,8 +108,8 @@ class EvaluateConfig:
     sampler: str = "uniform"
     # Regret of each executed chunk against the GCS cost-to-go (expert.chunk_regret); a chunk above
     # `large_regret_m` is a mistake (the GCS experts stay under 0.5 m per chunk, tracking lag included,
-    # unless a disturbance strikes).
-    regret: bool = True
+    # unless a disturbance strikes). Default: on where the env has a GCS expert (the box).
+    regret: bool | None = None
     # Metres of regret that make a chunk a mistake.
     large_regret_m: float = 0.5
     # Runs per initial condition.
@@ -116,7 +125,8 @@ class EvaluateConfig:
     workers: int = 1
     # Simulated seconds before a run counts as failed (the paper: 500).
     timeout_s: float = Scene.timeout_s
-    # Success radii (m) of the box centre around the goal: the paper's 0.1 and a looser one.
+    # Success radii (m) of the box centre around the goal: the paper's 0.1 and a looser one. A rotating
+    # slider succeeds by the env's coverage instead, and its tables give the mean coverage.
     success_thresholds: tuple[float, float] = (0.1, 0.2)
     # Repo id (or path) of the training dataset, for Fig. 4.
     dataset: str | None = None
@@ -130,6 +140,10 @@ class EvaluateConfig:
     ray_address: str | None = None
 
     def __post_init__(self) -> None:
+        from lerobot_gcs_push.expert import check_gcs_expert
+        from lerobot_gcs_push.rollout import check_env_id
+
+        check_env_id(self.env_id)
         if not self.policies:
             raise ValueError("give at least one policy")
         if self.runs < 1 or self.num_initial_conditions < 1 or self.workers < 1:
@@ -138,6 +152,12 @@ class EvaluateConfig:
             raise ValueError(f"timeout_s must be positive, got {self.timeout_s}")
         for p in self.policies:
             check_policy(p)
+            if p in GCS_POLICIES:
+                check_gcs_expert(self.env_id, f"--policies asks for {p}")
+        if self.regret is None:
+            self.regret = not SCENES[self.env_id].rotates
+        elif self.regret:
+            check_gcs_expert(self.env_id, "regret is scored against its cost-to-go: leave --regret unset or false")
         check_sampler(self.sampler)
         if self.seed is None:
             self.seed = NAMED_SET_SEEDS[self.sampler]
@@ -208,16 +228,47 @@ def video_path(out: Path, label: str, ic_index: int) -> Path:
 
 
 def initial_conditions(cfg: EvaluateConfig) -> list[dict]:
+    scene = SCENES[cfg.env_id]
     if cfg.initial_conditions:
         ics = load_initial_conditions(cfg.initial_conditions)
-        scene = Scene()
         for i, ic in enumerate(ics):
-            scene.validate_state(ic["box"], ic["finger"], what=f"initial condition {i}")
+            scene.validate_state(ic["box"], ic["finger"], heading=ic.get("heading", 0.0), what=f"initial condition {i}")
         return ics
     return [
         ic.to_json()
-        for ic in sample_initial_conditions(Scene(), cfg.num_initial_conditions, seed=cfg.seed, sampler=cfg.sampler)
+        for ic in sample_initial_conditions(scene, cfg.num_initial_conditions, seed=cfg.seed, sampler=cfg.sampler)
     ]
+
+
+@dataclass(frozen=True)
+class SuccessMeasures:
+    """How an env's runs are scored: the success rule (the env's `is_success`) and a second, looser
+    measure beside it, with their names in the tables."""
+
+    title: str  # Table I's title: the success rule
+    strict: str  # the success column's header
+    loose_key: str  # the record key of the second measure
+    loose: str  # its column's header
+    per_ic: str  # Table II's title
+
+
+def success_measures(cfg: EvaluateConfig) -> SuccessMeasures:
+    """The box: the paper's radius and a looser one. A rotating slider: coverage of the goal outline,
+    and beside it the mean final coverage (how close the failures came)."""
+    scene = SCENES[cfg.env_id]
+    if scene.rotates:
+        rule = f"coverage >= {scene.success_coverage:g}"
+        return SuccessMeasures(
+            f"success ({rule})", "success", "coverage", "mean coverage", f"success ({rule}) / mean coverage"
+        )
+    thr1, thr2 = cfg.success_thresholds
+    return SuccessMeasures(
+        f"success (box within {thr1:g} m)",
+        f"success {thr1:g} m",
+        f"success_{thr2:g}",
+        f"success {thr2:g} m",
+        f"success per initial condition ({thr1:g} m / {thr2:g} m)",
+    )
 
 
 # --- rollouts, in worker processes --------------------------------------------------------------------
@@ -230,7 +281,7 @@ class _Runner:
         self.cfg, self.out = cfg, out
         self.envs = {
             d: gym.make(
-                "GcsPushBox-v0",
+                cfg.env_id,
                 disturbances=d,
                 max_sim_time_s=cfg.timeout_s,
                 success_threshold=cfg.success_thresholds[0],
@@ -275,7 +326,7 @@ class _Runner:
 
     def learned(self, path: str):
         if path not in self._learned:
-            self._learned[path] = LearnedPolicy(path, self.cfg.device)
+            self._learned[path] = LearnedPolicy(path, self.cfg.device, self.envs[False].task)
         return self._learned[path]
 
     def run(self, job: dict) -> dict:
@@ -283,35 +334,31 @@ class _Runner:
         env = self.envs[dist]
         seed = episode_seed(self.cfg.seed, (i * self.cfg.runs + r) * 2 + int(dist))
         frames = [] if job["video"] else None
-        traj_f, traj_b = [], []
+        traj = Trajectory(env.scene.rotates)
 
         def on_step(obs, action, info):
-            traj_f.append(np.asarray(info["finger"], float))
-            traj_b.append(np.asarray(info["box"], float))
+            traj.add(info)
             if frames is not None:
                 frames.append(env.render())
 
         from lerobot_gcs_push.rollout import rollout
 
         actor = self.expert(policy) if policy in GCS_POLICIES else self.learned(policy)
-        res = rollout(env, actor, ic["box"], ic["finger"], seed=seed, on_step=on_step)
+        res = rollout(env, actor, ic["box"], ic["finger"], seed=seed, on_step=on_step, heading=ic.get("heading"))
         plan_time = res.get("plan_time_s", 0.0)
         chunk = getattr(actor, "chunk_steps", GCS_CHUNK_STEPS)
-        traj_f.append(np.asarray(res["finger_final"], float))
-        traj_b.append(np.asarray(res["box_final"], float))
+        traj.add_final(res)
         label = variant_label(policy, dist)
         tdir = self.out / "trajectories" / _slug(label)
         tdir.mkdir(parents=True, exist_ok=True)
         tpath = tdir / f"ic{i:03d}_run{r}.npz"
-        with atomic_path(tpath) as tmp, open(tmp, "wb") as f:
-            np.savez_compressed(f, finger=np.array(traj_f), box=np.array(traj_b))
+        traj.save(tpath)
         if frames:
             frames.append(env.render())
             from lerobot_gcs_push.videos import write_video
 
             write_video(video_path(self.out, label, i), frames, env.fps)
-        thr2 = self.cfg.success_thresholds[1]
-        regret = self.regret(traj_b, traj_f, chunk) if self.cfg.regret else {}
+        regret = self.regret(traj.box, traj.finger, chunk) if self.cfg.regret else {}
         return regret | {
             "policy": policy,
             "label": label,
@@ -322,7 +369,7 @@ class _Runner:
             "run": r,
             "seed": seed,
             "success": bool(res["success"]),
-            f"success_{thr2:g}": bool(res["success"] or res["final_distance"] <= thr2),
+            **self._success_measures(ic, res),
             "final_distance": res["final_distance"],
             "sim_time_s": res["sim_time_s"],
             "run_time_s": res["run_time_s"],
@@ -332,12 +379,55 @@ class _Runner:
             "trajectory": str(tpath.relative_to(self.out)),
         }
 
+    def _success_measures(self, ic: dict, res: dict) -> dict:
+        """The box's looser radius; a rotating slider's heading, start and end, and final coverage."""
+        if "coverage" not in res:
+            thr2 = self.cfg.success_thresholds[1]
+            return {f"success_{thr2:g}": bool(res["success"] or res["final_distance"] <= thr2)}
+        return {
+            "heading_initial": ic.get("heading", 0.0),
+            "slider_pose_final": res["slider_pose_final"],
+            "coverage": res["coverage"],
+            "heading_error": res["heading_error"],
+        }
+
+
+class Trajectory:
+    """A run's states, one row per step and the final state, as saved beside its record: finger and box
+    positions, and a rotating slider's pose (x, y, heading) too."""
+
+    def __init__(self, rotates: bool):
+        self.rotates = rotates
+        self.finger: list[np.ndarray] = []
+        self.box: list[np.ndarray] = []
+        self.slider_pose: list[np.ndarray] = []
+
+    def add(self, info: dict) -> None:
+        self.finger.append(np.asarray(info["finger"], float))
+        self.box.append(np.asarray(info["box"], float))
+        if self.rotates:
+            self.slider_pose.append(np.asarray(info["slider_pose"], float))
+
+    def add_final(self, summary: dict) -> None:
+        """The state the episode ended in, from the rollout's summary (no step follows it)."""
+        self.finger.append(np.asarray(summary["finger_final"], float))
+        self.box.append(np.asarray(summary["box_final"], float))
+        if self.rotates:
+            self.slider_pose.append(np.asarray(summary["slider_pose_final"], float))
+
+    def save(self, path: Path) -> None:
+        arrays = {"finger": np.array(self.finger), "box": np.array(self.box)}
+        if self.rotates:
+            arrays["slider_pose"] = np.array(self.slider_pose)
+        with atomic_path(path) as tmp, open(tmp, "wb") as f:
+            np.savez_compressed(f, **arrays)
+
 
 class LearnedPolicy:
     """A LeRobot checkpoint as a `rollout.Policy`, run the way lerobot-eval runs it (processors, action
     queue: a chunk is predicted every `chunk_steps` steps)."""
 
-    def __init__(self, path: str, device: str):
+    def __init__(self, path: str, device: str, task: str = TASK):
         import torch
         from lerobot.configs.policies import PreTrainedConfig
         from lerobot.envs.utils import preprocess_observation
@@ -354,6 +444,7 @@ class LearnedPolicy:
             cfg, pretrained_path=path, preprocessor_overrides={"device_processor": {"device": device}}
         )
         self.torch, self._preprocess = torch, preprocess_observation  # resolved once, not at every step
+        self.task = task  # the env's language instruction, as lerobot-eval passes it
         self.chunk_steps = int(cfg.n_action_steps)  # actions executed per predicted chunk
 
     def reset(self, obs, info: dict, seed: int | None) -> None:
@@ -365,7 +456,7 @@ class LearnedPolicy:
 
     def act(self, obs, info: dict) -> np.ndarray:
         batch = self._preprocess({"pixels": obs["pixels"][None], "agent_pos": obs["agent_pos"][None]})
-        batch["task"] = [TASK]
+        batch["task"] = [self.task]
         with self.torch.inference_mode():
             action = self.post(self.policy.select_action(self.pre(batch)))
         return action.reshape(-1)[:2].cpu().numpy().astype(np.float64)
@@ -419,6 +510,7 @@ def evaluate(cfg: EvaluateConfig) -> dict:
         "success_thresholds": list(cfg.success_thresholds),
         "regret": cfg.regret,
         "large_regret_m": cfg.large_regret_m,
+        "env_id": cfg.env_id,
     }
     runs_path = out / "runs.jsonl"
     if cfg.overwrite and out.exists():
@@ -431,12 +523,12 @@ def evaluate(cfg: EvaluateConfig) -> dict:
         shutil.rmtree(out)
     out.mkdir(parents=True, exist_ok=True)
     settings_path = out / "settings.json"
-    # Folders written before regret settings were recorded hold the defaults.
-    defaults = {"regret": EvaluateConfig.regret, "large_regret_m": EvaluateConfig.large_regret_m}
     stored = json.loads(settings_path.read_text()) if settings_path.exists() else None
     # Folders written before weights were recorded hold none: their runs are taken as they are.
     weights = stored.pop("policy_weights", {}) if stored else {}
-    if stored is not None and defaults | stored != settings:
+    # Folders written before these settings were recorded were made with the box and its regret on.
+    implicit = {"regret": True, "large_regret_m": EvaluateConfig.large_regret_m, "env_id": ENV_ID}
+    if stored is not None and implicit | stored != settings:
         raise FileExistsError(
             f"{out} holds an evaluation with other initial conditions or settings; "
             f"pass --overwrite=true or choose another --output_dir"
@@ -526,8 +618,7 @@ def _mean(xs) -> float | None:
 
 
 def summarize(cfg: EvaluateConfig, records: list[dict], ics: list[dict]) -> dict:
-    thr1, thr2 = cfg.success_thresholds
-    s2 = f"success_{thr2:g}"
+    s2 = success_measures(cfg).loose_key
     per_variant = {}
     for policy, dist in variants(cfg):
         recs = [r for r in records if r["policy"] == policy and r["disturbances"] == dist]
@@ -578,29 +669,31 @@ def _fmt(x, digits=2) -> str:
     return "-" if x is None else f"{x:.{digits}f}"
 
 
-def _paper_ref(v: dict) -> dict | None:
+def _paper_ref(cfg: EvaluateConfig, v: dict) -> dict | None:
+    if cfg.env_id != ENV_ID:  # the paper's numbers are the box's that cannot turn
+        return None
     kind = "gcs" if v["policy"] == "gcs-open-loop" else ("learned" if v["policy"] not in GCS_POLICIES else None)
     return PAPER.get((kind, v["disturbances"])) if kind else None
 
 
 def _tables_md(cfg: EvaluateConfig, pv: dict, ics: list[dict]) -> str:
-    thr1, thr2 = cfg.success_thresholds
-    s2 = f"success_{thr2:g}"
+    m = success_measures(cfg)
+    s2 = m.loose_key
+    on = "" if cfg.env_id == ENV_ID else f" on {cfg.env_id}"  # the box's tables read as they always have
     lines = [
-        f"# Evaluation: {len(ics)} initial conditions x {cfg.runs} runs, timeout {cfg.timeout_s:g} s\n",
-        f"## Table I: success (box within {thr1:g} m) and mean success simulation time\n",
-        f"| policy | runs | success {thr1:g} m | success {thr2:g} m | sim time (s) | paper success "
-        "| paper sim time (s) |",
+        f"# Evaluation{on}: {len(ics)} initial conditions x {cfg.runs} runs, timeout {cfg.timeout_s:g} s\n",
+        f"## Table I: {m.title} and mean success simulation time\n",
+        f"| policy | runs | {m.strict} | {m.loose} | sim time (s) | paper success | paper sim time (s) |",
         "|---|---|---|---|---|---|---|",
     ]
     for label, v in pv.items():
-        ref = _paper_ref(v) or {}
+        ref = _paper_ref(cfg, v) or {}
         lines.append(
             f"| {label} | {v['runs']} | {_fmt(v['success'])} | {_fmt(v[s2])} | "
             f"{_fmt(v['success_sim_time_s'], 1)} | {_fmt(ref.get('success'))} | "
             f"{_fmt(ref.get('success_sim_time_s'), 1)} |"
         )
-    lines += ["", f"## Table II: success per initial condition ({thr1:g} m / {thr2:g} m)\n"]
+    lines += ["", f"## Table II: {m.per_ic}\n"]
     labels = list(pv)
     lines.append("| IC | box | " + " | ".join(labels) + " |")
     lines.append("|---|---|" + "---|" * len(labels))
@@ -617,7 +710,7 @@ def _tables_md(cfg: EvaluateConfig, pv: dict, ics: list[dict]) -> str:
         "|---|---|---|---|---|---|---|",
     ]
     for label, v in pv.items():
-        ref = _paper_ref(v) or {}
+        ref = _paper_ref(cfg, v) or {}
         lines.append(
             f"| {label} | {_fmt(v['run_time_s'], 3)} | {_fmt(v['plan_time_s'], 3)} | "
             f"{_fmt(v['total_time_s'], 3)} | {_fmt(ref.get('run_time_s'))} | {_fmt(ref.get('plan_time_s'))} | "

@@ -18,6 +18,18 @@ from lerobot_gcs_push.planner.plan import DWELL, PUSH, Schedule
 EXPERTS = ("open-loop", "closed-loop")
 
 
+def check_gcs_expert(env_id: str, needed_by: str = "") -> None:
+    """Raise a ValueError unless `env_id` has the GCS experts and cost-to-go of this module.
+
+    They plan with the box that cannot turn: a rotating slider needs the planner through contact
+    (lerobot_gcs_push/contact/), which is not wired in yet. Without this check the box planner would
+    plan a T as if it were a box that cannot turn, silently."""
+    from lerobot_gcs_push.registration import SCENES
+
+    if SCENES[env_id].rotates:
+        raise ValueError(f"no GCS expert for {env_id} yet{f' ({needed_by})' if needed_by else ''}")
+
+
 @dataclass
 class ExpertConfig:
     mode: str = "open-loop"

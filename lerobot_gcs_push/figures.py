@@ -1,5 +1,5 @@
 """The paper's figures from evaluation records: Fig. 4 (training images averaged), Fig. 6 (success map),
-Fig. 7 (GCS and policy trajectories overlaid)."""
+Fig. 7 (GCS and policy trajectories overlaid; a rotating slider's outline along them)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_gcs_push.registration import SCENES
 from lerobot_gcs_push.scene import Scene
+
+OUTLINES_ALONG_PATH = 4  # a rotating slider's outlines drawn along a run, its end included
 
 
 def _plt():
@@ -42,15 +45,17 @@ def fig6_success_map(cfg, out: Path, records: list[dict], ics: list[dict]) -> Pa
     labels = _variants(records)
     if not labels:
         return None
+    from lerobot_gcs_push.evaluation import success_measures
+
     plt = _plt()
-    scene = Scene()
-    thr2 = cfg.success_thresholds[1]
+    scene = SCENES[cfg.env_id]
+    measure = success_measures(cfg)
     fig, axes = plt.subplots(1, len(labels), figsize=(4 * len(labels), 4), squeeze=False)
     lim = scene.box_limit
     for ax, label in zip(axes[0], labels):
         rates = []
         for i in range(len(ics)):
-            rs = [r[f"success_{thr2:g}"] for r in records if r["label"] == label and r["initial_condition_index"] == i]
+            rs = [r[measure.loose_key] for r in records if r["label"] == label and r["initial_condition_index"] == i]
             rates.append(np.mean(rs) if rs else np.nan)
         box = np.array([ic["box"] for ic in ics])
         sc = ax.scatter(box[:, 0], box[:, 1], c=rates, cmap="viridis", vmin=0, vmax=1, s=70, edgecolors="k")
@@ -61,8 +66,8 @@ def fig6_success_map(cfg, out: Path, records: list[dict], ics: list[dict]) -> Pa
         ax.set_ylim(-lim - 0.5, lim + 0.5)
         ax.set_aspect("equal")
         ax.set_title(label, fontsize=9)
-    fig.colorbar(sc, ax=axes[0].tolist(), label=f"success rate ({thr2:g} m)")
-    fig.suptitle("Initial box positions coloured by success rate (paper Fig. 6)")
+    fig.colorbar(sc, ax=axes[0].tolist(), label=measure.loose)
+    fig.suptitle(f"Initial box positions coloured by {measure.loose} (paper Fig. 6)")
     path = out / "fig6_success_map.png"
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
@@ -71,23 +76,21 @@ def fig6_success_map(cfg, out: Path, records: list[dict], ics: list[dict]) -> Pa
 
 def fig7_trajectories(cfg, out: Path, records: list[dict], ics: list[dict], max_ics: int = 6) -> Path | None:
     """Per initial condition: the GCS open-loop finger path (thick) and each other policy's (thin), brighter
-    with time, over the scene at its initial state."""
+    with time, over the scene at its initial state; a rotating slider's outline at a few poses along each
+    path, in the path's colour."""
     labels = _variants(records)
     if not labels:
         return None
     plt = _plt()
     from matplotlib.collections import LineCollection
 
-    scene = Scene()
+    scene = SCENES[cfg.env_id]
     n = min(max_ics, len(ics))
     fig, axes = plt.subplots(1, n, figsize=(3.2 * n, 3.4), squeeze=False)
     cmaps = ["Greys", "Blues", "Oranges", "Purples", "Reds", "Greens"]
     lim = scene.view_half_width
     for i, ax in zip(range(n), axes[0]):
-        ic = ics[i]
-        h = scene.box_half
-        ax.add_patch(_rect(ic["box"], h, "tab:red", 0.35))
-        ax.add_patch(_rect(scene.goal, h, "tab:green", 0.35))
+        draw_start_and_goal(ax, scene, ics[i])
         for j, label in enumerate(labels):
             rec = next(
                 (r for r in records if r["label"] == label and r["initial_condition_index"] == i and r["run"] == 0),
@@ -96,9 +99,12 @@ def fig7_trajectories(cfg, out: Path, records: list[dict], ics: list[dict], max_
             # Trajectories stay with the outputs (not in results/): a figure redrawn elsewhere skips them.
             if rec is None or not (out / rec["trajectory"]).is_file():
                 continue
-            finger = np.load(out / rec["trajectory"])["finger"]
+            traj = np.load(out / rec["trajectory"])
+            finger = traj["finger"]
             if len(finger) < 2:
                 continue
+            if scene.rotates:
+                draw_slider_path(ax, scene, traj["slider_pose"], plt.get_cmap(cmaps[j % len(cmaps)])(0.8))
             segs = np.stack([finger[:-1], finger[1:]], axis=1)
             thick = label == "gcs-open-loop"
             lc = LineCollection(
@@ -156,6 +162,34 @@ def fig_regret(cfg, out: Path, records: list[dict]) -> Path | None:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def draw_start_and_goal(ax, scene: Scene, ic: dict) -> None:
+    """The slider at the initial condition (red) and the goal (green): squares for the box that cannot
+    turn, outlines at their poses for a rotating slider."""
+    if not scene.rotates:
+        ax.add_patch(_rect(ic["box"], scene.box_half, "tab:red", 0.35))
+        ax.add_patch(_rect(scene.goal, scene.box_half, "tab:green", 0.35))
+        return
+    from matplotlib.patches import Polygon
+
+    start = scene.shape.world_outline((*ic["box"], ic.get("heading", 0.0)))
+    ax.add_patch(Polygon(start, closed=True, color="tab:red", alpha=0.35, gid="start"))
+    ax.add_patch(
+        Polygon(scene.shape.world_outline(scene.goal_pose), closed=True, color="tab:green", alpha=0.35, gid="goal")
+    )
+
+
+def draw_slider_path(ax, scene: Scene, poses, color) -> None:
+    """A rotating slider's outline at `OUTLINES_ALONG_PATH` poses spread over the run (x, y, heading per
+    row), the last one its final pose: where it went and how it turned."""
+    from matplotlib.patches import Polygon
+
+    poses = np.asarray(poses, float)
+    picks = np.unique(np.linspace(0, len(poses) - 1, OUTLINES_ALONG_PATH + 1).round().astype(int))[1:]
+    for k in picks:  # the start is drawn filled with the scene
+        outline = scene.shape.world_outline(poses[k])
+        ax.add_patch(Polygon(outline, closed=True, fill=False, edgecolor=color, lw=0.9, gid="along_path"))
 
 
 def _rect(center, half, color, alpha):

@@ -1,4 +1,4 @@
-"""One rollout for every consumer: a policy in `GcsPushBox-v0` from an initial condition.
+"""One rollout for every consumer: a policy in a pushing env (any registered id) from an initial condition.
 
 Demonstrations, evaluation and active-data collection all run this loop and differ only in what they
 keep (`on_step`). A policy is anything with `reset(obs, info, seed)` and `act(obs, info) -> action`: the
@@ -15,6 +15,15 @@ from typing import Protocol
 import numpy as np
 
 
+def check_env_id(env_id: str) -> str:
+    """`env_id` if it is one of the registered pushing envs, else a ValueError that lists them."""
+    from lerobot_gcs_push.registration import SCENES
+
+    if env_id not in SCENES:
+        raise ValueError(f"unknown env_id {env_id!r}: choose one of {', '.join(SCENES)}")
+    return env_id
+
+
 class Policy(Protocol):
     def reset(self, obs: dict, info: dict, seed: int | None) -> None: ...
 
@@ -28,12 +37,17 @@ def rollout(
     finger=None,
     seed: int | None = None,
     on_step: Callable[[dict, np.ndarray, dict], None] | None = None,
+    heading: float | None = None,
 ) -> dict:
     """Run one episode of `policy` in `env` (a GcsPushBoxEnv, possibly wrapped) and summarise it.
 
-    Without `box`/`finger` the env samples the initial condition from `seed`. `on_step(obs, action,
-    info)` sees each action with the observation it was chosen from."""
+    Without `box`/`finger` the env samples the initial condition from `seed`; `heading` is a rotating
+    slider's (None: the env's default, 0). `on_step(obs, action, info)` sees each action with the
+    observation it was chosen from. A rotating slider's summary adds its final pose, coverage and
+    heading error."""
     options = None if box is None else {"box": list(box), "finger": list(finger)}
+    if options is not None and heading is not None:
+        options["heading"] = float(heading)
     obs, info = env.reset(seed=seed, options=options)
     policy.reset(obs, info, seed)
     t0 = time.perf_counter()
@@ -52,5 +66,11 @@ def rollout(
         "finger_final": np.asarray(info["finger"]).tolist(),
         "disturbances": info.get("disturbances", []),
     }
+    if "slider_pose" in info:  # a rotating slider: success is coverage, the pose has a heading
+        summary |= {
+            "slider_pose_final": np.asarray(info["slider_pose"]).tolist(),
+            "coverage": float(info["coverage"]),
+            "heading_error": float(info["heading_error"]),
+        }
     extra = getattr(policy, "episode_summary", None)
     return summary | (extra() if extra is not None else {})

@@ -106,6 +106,27 @@ def test_figures_and_video_are_real_images(open_loop):
     assert len(videos) == 1 and videos[0].stat().st_size > 5000
 
 
+def test_an_evaluation_from_before_the_env_was_recorded_resumes_as_the_box(open_loop, ics_file, tmp_path):
+    """settings.json without env_id (nor regret settings) was the box with regret on: resumed, not refused;
+    the same folder asked for another env is refused."""
+    import shutil
+
+    out, _ = open_loop
+    legacy = tmp_path / "legacy"
+    shutil.copytree(out, legacy)
+    settings = json.loads((legacy / "settings.json").read_text())
+    assert settings["env_id"] == "GcsPushBox-v0" and settings["regret"] is True
+    old = {k: v for k, v in settings.items() if k not in ("env_id", "regret", "large_regret_m")}
+    (legacy / "settings.json").write_text(json.dumps(old))
+    cfg = dict(policies=["gcs-open-loop"], initial_conditions=str(ics_file), runs=1, videos=0)
+    evaluate(EvaluateConfig(**cfg, output_dir=str(legacy)))
+    assert read_runs(legacy / "runs.jsonl") == read_runs(out / "runs.jsonl")  # nothing ran again
+    assert json.loads((legacy / "settings.json").read_text())["env_id"] == "GcsPushBox-v0"
+    policy = str(Path(__file__).resolve().parents[1] / "policies" / "diffusion_cpu")
+    with pytest.raises(FileExistsError, match="other initial conditions or settings"):
+        evaluate(EvaluateConfig(**(cfg | {"policies": [policy]}), env_id="GcsPushBoxSE2-v0", output_dir=str(legacy)))
+
+
 def _without_timing(recs):
     return sorted(json.dumps({k: v for k, v in r.items() if k not in TIMING_FIELDS}, sort_keys=True) for r in recs)
 
