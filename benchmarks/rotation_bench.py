@@ -148,10 +148,11 @@ def main(argv=None) -> dict:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--slider", default="box", choices=("box", "tee"))
     ap.add_argument("--layers", type=int, default=2)
-    ap.add_argument("--knots", type=int, default=5)
+    ap.add_argument("--knots", type=int, default=6)
     ap.add_argument("--pieces", type=int, default=1, help="contact-location intervals per face")
     ap.add_argument("--window-margin", type=float, default=None, help="heading window (rad) and its chord cut")
     ap.add_argument("--edge-copies", action="store_true", help="one contact copy per entering edge (last layer)")
+    ap.add_argument("--max-step-rotation", type=float, default=0.2, help="rad per knot step")
     ap.add_argument("--no-rlt", action="store_true")
     args = ap.parse_args(argv)
     stats = run(
@@ -164,6 +165,7 @@ def main(argv=None) -> dict:
         pieces=args.pieces,
         window_margin=args.window_margin,
         edge_copies=args.edge_copies,
+        max_step_rotation=args.max_step_rotation,
     )
     for k, v in stats.items():
         print(f"{k:32s} {v:.4g}")

@@ -26,7 +26,9 @@ SHARED_TAIL = [ONE, LAM, C1, S1]
 SHARED_HEAD = [ONE, LAM, C0, S0]
 POSE_HEAD = [ONE, C0, S0]
 POSE_TAIL = [ONE, C1, S1]
-MAX_STEP_ROTATION = 0.35  # rad per knot step: keeps sin(dtheta) ~ dtheta (2 %) and rules out flips
+# rad per knot step: rules out flips and bounds the discretisation's error against the continuous model
+# (sin(dtheta) for dtheta and the midpoint rotation; the planner defaults to 0.2, see planner.py).
+MAX_STEP_ROTATION = 0.35
 
 
 def _form(monomials: dict[tuple[int, int], float]) -> np.ndarray:
@@ -64,7 +66,12 @@ class StepForms:
 
 
 def step_forms(
-    face: Face, model: PushModel, rot_weight: float, rlt: bool = True, lam_range: tuple[float, float] = (0.0, 1.0)
+    face: Face,
+    model: PushModel,
+    rot_weight: float,
+    rlt: bool = True,
+    lam_range: tuple[float, float] = (0.0, 1.0),
+    max_step: float = MAX_STEP_ROTATION,
 ) -> StepForms:
     n, t, a, e, k = face.n, face.t, face.a, face.e, model.kappa
     eqs: list[tuple[dict, list[float]]] = []
@@ -90,7 +97,7 @@ def step_forms(
     )
     for c, s in ((C0, S0), (C1, S1)):
         eqs.append(({(c, c): 1.0, (s, s): 1.0, (ONE, ONE): -1.0}, [0.0] * 4))
-    step = {(C0, C1): 1.0, (S0, S1): 1.0, (ONE, ONE): -math.cos(MAX_STEP_ROTATION)}
+    step = {(C0, C1): 1.0, (S0, S1): 1.0, (ONE, ONE): -math.cos(max_step)}
     # First-order inequalities: the friction cone, lam on the face, (c, s) in [-1, 1]^2.
     contact = [
         _lin({LAM: 1.0, ONE: -lam_range[0]}),

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import cvxpy as cp
 import numpy as np
 
-from lerobot_gcs_push.contact.face_contact import ArcParameters, RelaxedFaceContact, step_forms
+from lerobot_gcs_push.contact.face_contact import MAX_STEP_ROTATION, ArcParameters, RelaxedFaceContact, step_forms
 from lerobot_gcs_push.contact.graph import ContactGraph
 from lerobot_gcs_push.contact.model import PushModel
 from lerobot_gcs_push.contact.non_collision import RelaxedNonCollision, free_regions
@@ -61,6 +61,7 @@ class GraphRelaxation:
         rlt: bool = True,
         window: bool = True,
         edge_copies: bool = False,
+        max_step: float = MAX_STEP_ROTATION,
     ):
         self.model, self.graph = model, graph
         self.regions = free_regions(model)
@@ -74,7 +75,7 @@ class GraphRelaxation:
         self.phi_c = cp.Variable(len(graph.contacts), nonneg=True)
         self.phi_f = cp.Variable(len(graph.frees), nonneg=True)
         self.phi_t = cp.Variable(len(graph.contacts), nonneg=True)
-        forms = contact_forms(model, graph, rot_weight, rlt)
+        forms = contact_forms(model, graph, rot_weight, rlt, max_step)
         # edge_copies: a last-layer contact vertex gets one copy per entering free vertex (the standard
         # GCS edge copy) instead of one aggregate, so flows entering from different poses cannot trade
         # their trajectories inside it.
@@ -190,10 +191,12 @@ def piece_range(graph: ContactGraph, piece: int, face) -> tuple[float, float]:
     return face.lam_lo + w * piece / graph.pieces, face.lam_lo + w * (piece + 1) / graph.pieces
 
 
-def contact_forms(model: PushModel, graph: ContactGraph, rot_weight: float, rlt: bool) -> dict:
+def contact_forms(
+    model: PushModel, graph: ContactGraph, rot_weight: float, rlt: bool, max_step: float = MAX_STEP_ROTATION
+) -> dict:
     """The step forms of every (face, lam piece)."""
     return {
-        (f.index, k): step_forms(f, model, rot_weight, rlt, piece_range(graph, k, f))
+        (f.index, k): step_forms(f, model, rot_weight, rlt, piece_range(graph, k, f), max_step)
         for f in model.faces
         for k in range(graph.pieces)
     }
