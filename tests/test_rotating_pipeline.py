@@ -211,3 +211,26 @@ def test_collect_takes_the_env_from_the_rollouts_and_refuses_one_without_an_expe
     assert rollouts_env_id([str(box)]) == ENV_ID
     with pytest.raises(ValueError, match="different envs"):
         rollouts_env_id([str(box), str(tee_eval)])
+
+
+def test_initial_conditions_from_a_file_keep_their_headings_and_are_checked_at_them(tmp_path):
+    """A heading in the file is the one the run starts at; a finger clear of the box at heading 0 but inside
+    it at the file's heading is refused before any run, its entry named."""
+    from lerobot_gcs_push.evaluation import evaluate
+
+    ics = tmp_path / "ics.json"
+    ics.write_text(json.dumps([{"box": [2.0, -1.0], "finger": [-1.0, 1.5], "heading": 2.5}]))
+    out = tmp_path / "eval"
+    common = dict(env_id=SE2_ENV_ID, policies=[str(POLICY)], runs=1, timeout_s=1.0, videos=0)
+    evaluate(EvaluateConfig(**common, initial_conditions=str(ics), output_dir=str(out)))
+    (rec,) = read_runs(out / "runs.jsonl")
+    assert rec["heading_initial"] == 2.5
+    np.testing.assert_allclose(np.load(out / rec["trajectory"])["slider_pose"][0], [2.0, -1.0, 2.5], atol=1e-9)
+    # Turned 45 degrees, the box's corner reaches 0.71 m along x: the finger (radius 0.3 m) centred 0.9 m
+    # out along x clears the face at heading 0 by 0.1 m and overlaps the corner at 45 degrees.
+    finger = [2.0 + 0.9, -1.0]
+    assert SCENES[SE2_ENV_ID].finger_box_gap([2.0, -1.0], finger, 0.0) == pytest.approx(0.1)
+    ics.write_text(json.dumps([{"box": [2.0, -1.0], "finger": finger, "heading": math.pi / 4}]))
+    with pytest.raises(ValueError, match="initial condition 0.*overlaps"):
+        evaluate(EvaluateConfig(**common, initial_conditions=str(ics), output_dir=str(tmp_path / "refused")))
+    assert not (tmp_path / "refused" / "runs.jsonl").exists()
