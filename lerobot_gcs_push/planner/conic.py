@@ -54,48 +54,10 @@ class Conic:
     free: np.ndarray | None = None  # columns of the original program (None: this is it)
     fixed: np.ndarray | None = None  # the original program's x with the fixed values filled in
 
-    def fix(self, values: np.ndarray) -> Conic:
-        """The program with the variables whose entry in `values` is not NaN fixed to it. Rows left
-        without variables are dropped (raising `Infeasible` if their constant violates the cone), and a
-        second-order cone whose tail lost its variables becomes t >= 0."""
-        free = np.isnan(values)
-        v = np.where(free, 0.0, values)
-        A = self.A[:, free]
-        b = self.b - self.A @ v
-        used = np.bincount(A.indices[A.data != 0], minlength=A.shape[0]) > 0
-        zero = np.arange(self.zero)
-        nonneg = self.zero + np.arange(self.nonneg)
-        if np.any(np.abs(b[zero[~used[zero]]]) > FEAS_TOL) or np.any(b[nonneg[~used[nonneg]]] < -FEAS_TOL):
-            raise Infeasible
-        rows_zero, rows_nonneg, rows_soc, soc = [zero[used[zero]]], [nonneg[used[nonneg]]], [], []
-        start = self.zero + self.nonneg
-        for k in self.soc:
-            head, tail = start, np.arange(start + 1, start + k)
-            start += k
-            if used[tail].any():
-                rows_soc.append(np.arange(head, head + k))
-                soc.append(k)
-            elif np.linalg.norm(b[tail]) > FEAS_TOL:  # a constant tail: still a cone on the head
-                rows_soc.append(np.arange(head, head + k))
-                soc.append(k)
-            elif used[head]:
-                rows_nonneg.append([head])
-            elif b[head] < -FEAS_TOL:
-                raise Infeasible
-        rows = np.concatenate(rows_zero + rows_nonneg + rows_soc).astype(int)
-        base_free = np.arange(len(self.c)) if self.free is None else self.free
-        base_fixed = values if self.fixed is None else _scatter(self.fixed, self.free, values)
-        return Conic(
-            A=A[rows].tocsc(),
-            b=b[rows],
-            c=self.c[free],
-            d=self.d + float(self.c @ v),
-            zero=len(rows_zero[0]),
-            nonneg=sum(len(r) for r in rows_nonneg),
-            soc=soc,
-            free=base_free[free],
-            fixed=base_fixed,
-        )
+    def fix(self, values: np.ndarray, fixing: Fixing | None = None) -> Conic:
+        """The program with the variables whose entry in `values` is not NaN fixed to it. `fixing`: the
+        same variables' `Fixing`, computed once for programs of this sparsity pattern."""
+        return (fixing or Fixing(self, ~np.isnan(values))).apply(self, values)
 
     def solve(self, reuse: SolverCache | None = None, key=None) -> ConicSolution:
         """Clarabel on this data, with its default settings (those cvxpy passes too). With `reuse`, a
@@ -122,6 +84,63 @@ class Conic:
         if self.nonneg:
             cones.append(clarabel.NonnegativeConeT(self.nonneg))
         return cones + [clarabel.SecondOrderConeT(k) for k in self.soc]
+
+
+class Fixing:
+    """Which rows and matrix entries survive fixing the variables in `fixed` (a mask over x), worked
+    out from a program's sparsity pattern alone, so that it serves every program with that pattern
+    (every query, for one set of dropped edges or one path): applying it is a gather of A's entries.
+    Rows left without variables are dropped, after `apply` checks their constants against the cone
+    (raising `Infeasible`); a second-order cone keeps its rows while any of them has a variable."""
+
+    def __init__(self, pattern: Conic, fixed: np.ndarray):
+        A, m = pattern.A, pattern.A.shape[0]
+        self.free = np.flatnonzero(~fixed)
+        entry_col = np.repeat(np.arange(A.shape[1]), np.diff(A.indptr))
+        kept = ~fixed[entry_col]
+        used = np.bincount(A.indices[kept], minlength=m) > 0
+        zero, nonneg = np.arange(pattern.zero), pattern.zero + np.arange(pattern.nonneg)
+        self.empty_zero, self.empty_nonneg = zero[~used[zero]], nonneg[~used[nonneg]]
+        rows, self.soc, self.empty_soc = [zero[used[zero]], nonneg[used[nonneg]]], [], []
+        start = pattern.zero + pattern.nonneg
+        for k in pattern.soc:
+            cone = np.arange(start, start + k)
+            start += k
+            if used[cone].any():
+                rows.append(cone)
+                self.soc.append(k)
+            else:
+                self.empty_soc.append(cone)
+        self.rows = np.concatenate(rows).astype(int)
+        self.zero, self.nonneg = len(rows[0]), len(rows[1])
+        # Rows keep their order, so the surviving entries are already in CSC order.
+        new_row = np.full(m, -1)
+        new_row[self.rows] = np.arange(len(self.rows))
+        self.gather = np.flatnonzero(kept & (new_row[A.indices] >= 0))
+        self.indices = new_row[A.indices[self.gather]].astype(np.int32)
+        counts = np.bincount(entry_col[self.gather], minlength=A.shape[1])[self.free]
+        self.indptr = np.r_[0, np.cumsum(counts)].astype(np.int32)
+        self.shape = (len(self.rows), len(self.free))
+
+    def apply(self, conic: Conic, values: np.ndarray) -> Conic:
+        v = np.where(np.isnan(values), 0.0, values)
+        b = conic.b - conic.A @ v
+        bad = np.any(np.abs(b[self.empty_zero]) > FEAS_TOL) or np.any(b[self.empty_nonneg] < -FEAS_TOL)
+        if bad or any(b[c[0]] < np.linalg.norm(b[c[1:]]) - FEAS_TOL for c in self.empty_soc):
+            raise Infeasible
+        base_free = np.arange(len(conic.c)) if conic.free is None else conic.free
+        base_fixed = values if conic.fixed is None else _scatter(conic.fixed, conic.free, values)
+        return Conic(
+            A=sp.csc_matrix((conic.A.data[self.gather], self.indices, self.indptr), shape=self.shape),
+            b=b[self.rows],
+            c=conic.c[self.free],
+            d=conic.d + float(conic.c @ v),
+            zero=self.zero,
+            nonneg=self.nonneg,
+            soc=self.soc,
+            free=base_free[self.free],
+            fixed=base_fixed,
+        )
 
 
 class SolverCache:

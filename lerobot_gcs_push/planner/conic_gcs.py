@@ -25,7 +25,7 @@ import numpy as np
 
 from lerobot_gcs_push.planner import conic as conic_module
 from lerobot_gcs_push.planner import gcs, transcription
-from lerobot_gcs_push.planner.conic import Conic, Infeasible, ParametricConic, SolverCache
+from lerobot_gcs_push.planner.conic import Conic, Fixing, Infeasible, ParametricConic, SolverCache
 from lerobot_gcs_push.planner.gcs import FlowSolution, GcsProgram, SolverError, free_coords
 from lerobot_gcs_push.planner.graph import ModeGraph
 from lerobot_gcs_push.planner.restriction import PathSolution
@@ -111,6 +111,13 @@ class ConicGcs:
         self.data = data or parametric(graph)
         self.cols = EdgeColumns(graph, self.data)
         self.solvers = SolverCache()
+        self._fixings: dict[tuple, Fixing] = {}
+
+    def fixing(self, conic: Conic, key: tuple, values: np.ndarray) -> Fixing:
+        """Every query's conic data has the same pattern (ParametricConic.at), so one per key."""
+        if key not in self._fixings:
+            self._fixings[key] = Fixing(conic, ~np.isnan(values))
+        return self._fixings[key]
 
     def relax(self, src, goal, allowed) -> ConicQuery:
         """The relaxation of the query; raises SolverError when it has no optimum."""
@@ -118,7 +125,8 @@ class ConicGcs:
         t0 = time.perf_counter()
         try:
             dropped = tuple(i for i in range(len(allowed)) if allowed[i] <= 0)
-            sol = conic.fix(self.cols.fixed(dropped, {})).solve(self.solvers, dropped)
+            values, key = self.cols.fixed(dropped, {}), ("relaxation", dropped)
+            sol = conic.fix(values, self.fixing(conic, key, values)).solve(self.solvers, key)
         except Infeasible:
             sol = None
         elapsed = time.perf_counter() - t0
@@ -139,8 +147,9 @@ class ConicGcs:
         on = set(edges)
         t0 = time.perf_counter()
         try:
-            off = [i for i in range(len(g.edges)) if i not in on]
-            sol = conic.fix(self.cols.fixed(off, {i: 1.0 for i in edges})).solve(self.solvers, edges)
+            values = self.cols.fixed([i for i in range(len(g.edges)) if i not in on], {i: 1.0 for i in edges})
+            key = ("path", edges)
+            sol = conic.fix(values, self.fixing(conic, key, values)).solve(self.solvers, key)
         except Infeasible:
             return PathSolution(edges, vertices, np.inf, {}, time.perf_counter() - t0)
         elapsed = time.perf_counter() - t0
