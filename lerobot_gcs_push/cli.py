@@ -55,8 +55,9 @@ class DemoConfig:
     protocol: bool = False
     # GCS demonstrations to write (skipped when the dataset exists and overwrite is false); default by protocol.
     episodes: int | None = None
-    # The dataset's LeRobot id (written to $HF_LEROBOT_HOME/<repo_id>).
-    repo_id: str = "local/gcs_push_box"
+    # The dataset's LeRobot id (written to $HF_LEROBOT_HOME/<repo_id>); default local/gcs_push_box (what
+    # the training preset reads) with the protocol, local/gcs_push_box_quick without.
+    repo_id: str | None = None
     # Worker processes for generation and evaluation.
     workers: int = 2
     # The experts' evaluation: initial conditions x runs, with and without disturbances; default by protocol.
@@ -78,8 +79,10 @@ class DemoConfig:
         # Checked before the demonstrations are written, not minutes later when the step that needs it runs.
         from lerobot_gcs_push.evaluation import check_device, check_policy
 
-        quick, full = (20, 5, 1), (100, 20, 5)
-        for name, value in zip(("episodes", "num_initial_conditions", "runs"), full if self.protocol else quick):
+        quick, full = (20, 5, 1, "local/gcs_push_box_quick"), (100, 20, 5, "local/gcs_push_box")
+        for name, value in zip(
+            ("episodes", "num_initial_conditions", "runs", "repo_id"), full if self.protocol else quick
+        ):
             if getattr(self, name) is None:
                 setattr(self, name, value)
         if min(self.episodes, self.workers, self.num_initial_conditions, self.runs) < 1:
@@ -155,9 +158,13 @@ def run_improve(cfg: ImproveConfig) -> None:
 
     report = improve(cfg)
     for r in report.get("rounds", []):
-        scores = ", ".join(f"{name} {s['successes']}/{s['runs']}" for name, s in r["winner_by_set"].items())
-        print(f"round {r['round']} at {r['hours']:.2f} h: {'shipped' if r['shipped'] else 'kept'}; {scores}")
-    print(f"state in {cfg.state_dir}/state.json (commit that folder to resume on another machine)")
+        rollouts = ", ".join(
+            f"{name} {s.get('without', 0):.2f} / {s.get('with', float('nan')):.2f} at {s['time_ratio']:.2f}x GCS"
+            for name, s in r["rollouts"].items()
+        )
+        verdict = "targets met" if r.get("targets_met") else ("shipped" if r["shipped"] else "kept")
+        print(f"round {r['round']} at {r['hours']:.2f} h: rollouts {rollouts} (without / with disturbances); {verdict}")
+    print(f"to resume elsewhere, commit {cfg.state_dir} and {cfg.policy} and run the same command")
 
 
 def run_demo(cfg: DemoConfig) -> None:
@@ -228,7 +235,7 @@ def run_demo(cfg: DemoConfig) -> None:
         print(f"learned policy: {policy_dir}/tables.md; watch {policy_dir}/side_by_side_ic000.mp4")
     print(
         "train a policy on the dataset (CPU preset):\n"
-        "  .venv/bin/lerobot-train --config_path=configs/policy/diffusion_cpu.json"
+        f"  .venv/bin/lerobot-train --config_path=configs/policy/diffusion_cpu.json --dataset.repo_id={cfg.repo_id}"
     )
 
 

@@ -76,8 +76,13 @@ def decide(records: list[dict], current: str, candidate: str, margin: int = 3, t
     # No success: no time to compare. A candidate without one never ships on time; against a current
     # policy without one, any success is faster.
     faster = b.successes > 0 and b.mean_success_time_s <= (1 - time_gain) * a.mean_success_time_s
-    gain = 1 - b.mean_success_time_s / a.mean_success_time_s if np.isfinite(a.mean_success_time_s) else 0.0
-    why = f"{diff:+d} successes, within the margin of {margin}; mean success time {100 * gain:+.1f} % lower"
+    why = f"{diff:+d} successes, within the margin of {margin}; "
+    if not b.successes:
+        return Decision(False, why + "the candidate has no success", a, b)
+    if not a.successes:
+        return Decision(True, why + "the current policy has no success", a, b)
+    gain = 1 - b.mean_success_time_s / a.mean_success_time_s
+    why += f"mean success time {100 * gain:+.1f} % lower"
     return Decision(
         bool(faster), why + (f" (>= {100 * time_gain:g} %)" if faster else f" (< {100 * time_gain:g} %)"), a, b
     )

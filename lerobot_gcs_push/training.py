@@ -2,22 +2,25 @@
 
 LeRobot resumes its own runs (`--resume=true`, optimizer and schedule included) from the checkpoints in
 `output_dir`. Those do not travel (the optimizer state is three times the fp16 weights), so every
-checkpoint is also exported in fp16 beside the caller's state (`partial`): on a fresh machine training
-continues from there for the remaining steps, a warm restart of the schedule, as the rounds' fine-tunes
-all were.
+checkpoint is also exported in fp16 beside the caller's state (`partial`). On a fresh machine training
+continues from there for the remaining steps, on the tail of the same schedule: no warm-up, the cosine
+decaying from the rate the original schedule had reached (a warm restart at the peak rate undoes what
+was learned: run 7).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import subprocess
 import sys
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from lerobot_gcs_push.checkpoints import export_policy, is_pretrained_dir
+from lerobot_gcs_push.files import atomic_path
 
 
 @dataclass
@@ -30,6 +33,7 @@ class TrainJob:
     seed: int
     # Fine-tune from these weights; None trains from scratch.
     init_policy: str | None = None
+    # Peak learning rate; None keeps the preset's.
     lr: float | None = None
     use_amp: bool = True
     device: str = "cpu"
@@ -38,9 +42,15 @@ class TrainJob:
     # fp16 copy of the newest checkpoint, with the step it holds: the cross-machine resume point.
     partial: Path | None = None
 
+    def signature(self) -> dict:
+        """What the job computes: a folder made by another job is never resumed as this one."""
+        skip = ("output_dir", "device", "save_freq", "log_freq", "partial")
+        return {k: str(v) if isinstance(v, Path) else v for k, v in asdict(self).items() if k not in skip}
+
 
 def checkpoint_step(output_dir: Path) -> int:
-    """The step of the newest whole checkpoint in a lerobot-train output folder (0 without one)."""
+    """The step of the newest whole checkpoint in a lerobot-train output folder (0 without one): LeRobot
+    points `last` at a checkpoint only once it is written."""
     state = Path(output_dir) / "checkpoints" / "last" / "training_state" / "training_step.json"
     if not state.is_file():
         return 0
@@ -53,34 +63,45 @@ def partial_step(partial: Path | None) -> int:
     return int(json.loads((partial / "step.json").read_text())["step"])
 
 
+def cosine_lr(step: int, steps: int, peak: float, warmup: int) -> float:
+    """The rate of LeRobot's diffusion preset schedule (diffusers' cosine with linear warm-up) at `step`."""
+    if step < warmup:
+        return peak * step / max(1, warmup)
+    return peak * 0.5 * (1 + math.cos(math.pi * (step - warmup) / max(1, steps - warmup)))
+
+
+def _preset_schedule(job: TrainJob) -> tuple[float, int]:
+    from lerobot.policies.diffusion.configuration_diffusion import DiffusionConfig
+
+    policy = json.loads(Path(job.config_path).read_text()).get("policy", {})
+    peak = job.lr if job.lr is not None else policy.get("optimizer_lr", DiffusionConfig.optimizer_lr)
+    return float(peak), int(policy.get("scheduler_warmup_steps", DiffusionConfig.scheduler_warmup_steps))
+
+
 def train(job: TrainJob, progress_desc: str = "training") -> Path:
     """Run (or resume) the job to `job.steps`; return its final `pretrained_model` directory."""
     from tqdm.auto import tqdm
 
     out = Path(job.output_dir)
+    meta = out.with_name(out.name + ".job.json")  # the job's signature and its offset
     done = out.with_name(out.name + ".done")
-    if done.is_file() and is_pretrained_dir(done.read_text().strip()):
+    if meta.is_file() and json.loads(meta.read_text())["signature"] != job.signature():
+        raise ValueError(
+            f"{out} holds a training with other settings (steps, seed, data, starting weights): delete it, "
+            "or choose another work_dir"
+        )
+    if done.is_file() and meta.is_file():
         return Path(done.read_text().strip())
     # Steps done before this folder's run began (on another machine), so its own steps count from there.
-    offset_file = out.with_name(out.name + ".offset.json")
-    done_here = checkpoint_step(out)
-    args = [sys.executable, "-m", "lerobot.scripts.lerobot_train"]
-    if done_here > 0:
-        offset = json.loads(offset_file.read_text())["offset"] if offset_file.is_file() else 0
-        args += [f"--config_path={out}/checkpoints/last/pretrained_model/train_config.json", "--resume=true"]
-        start = offset + done_here
-        final = out / "checkpoints" / f"{job.steps - offset:06d}" / "pretrained_model"
-        if is_pretrained_dir(final):  # killed after its last checkpoint
-            done.write_text(str(final) + "\n")
-            return final
+    if checkpoint_step(out) > 0 and meta.is_file():
+        offset = json.loads(meta.read_text())["offset"]
+        args = [f"--config_path={out}/checkpoints/last/pretrained_model/train_config.json", "--resume=true"]
     else:
         shutil.rmtree(out, ignore_errors=True)  # killed before its first checkpoint: nothing to keep
-        init, offset = job.init_policy, partial_step(job.partial)
-        if offset > 0:  # another machine's progress: continue from its weights for the rest
-            init = str(job.partial)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        offset_file.write_text(json.dumps({"offset": offset}) + "\n")
-        args += [
+        offset = partial_step(job.partial)
+        if offset >= job.steps:  # another machine finished; only its export and clean-up were cut short
+            return job.partial
+        args = [
             f"--config_path={job.config_path}",
             f"--dataset.repo_id={job.dataset_repo_id}",
             f"--output_dir={out}",
@@ -93,44 +114,59 @@ def train(job: TrainJob, progress_desc: str = "training") -> Path:
             f"--policy.device={job.device}",
             "--num_workers=1",
         ]
+        init = str(job.partial) if offset > 0 else job.init_policy
         if init:
             args.append(f"--policy.path={init}")
-        if job.lr is not None:
+        if offset > 0:
+            peak, warmup = _preset_schedule(job)
+            lr = cosine_lr(offset, job.steps, peak, warmup)
+            args += ["--policy.scheduler_warmup_steps=0", f"--policy.optimizer_lr={lr:.3e}"]
+        elif job.lr is not None:
             args.append(f"--policy.optimizer_lr={job.lr}")
-        start = offset
-    final = out / "checkpoints" / f"{job.steps - offset:06d}" / "pretrained_model"
+        with atomic_path(meta) as tmp:
+            tmp.write_text(json.dumps({"signature": job.signature(), "offset": offset}))
+    local_steps = job.steps - offset
+    final = out / "checkpoints" / f"{local_steps:06d}" / "pretrained_model"
+    if checkpoint_step(out) < local_steps:
+        _run(job, args, out, offset, progress_desc, tqdm)
+    if checkpoint_step(out) != local_steps or not is_pretrained_dir(final):
+        raise RuntimeError(f"lerobot-train finished without its step-{local_steps} checkpoint {final}")
+    with atomic_path(done) as tmp:
+        tmp.write_text(str(final) + "\n")
+    return final
+
+
+def _run(job: TrainJob, args: list[str], out: Path, offset: int, desc: str, tqdm) -> None:
     # OpenMP threads that spin while waiting make training 4-10x slower beside any other work on the
     # cores (configs/README.md, "Shared machines"); passive waiting costs nothing alone.
     env = {"OMP_NUM_THREADS": "2", "OMP_WAIT_POLICY": "PASSIVE"} | os.environ | {"HF_HUB_OFFLINE": "1"}
     log = out.with_name(out.name + ".log")
     log.parent.mkdir(parents=True, exist_ok=True)
-    bar = tqdm(total=job.steps, initial=start, desc=progress_desc, unit="step", dynamic_ncols=True)
-    exported = checkpoint_step(out) if out.exists() else 0
+    cmd = [sys.executable, "-m", "lerobot.scripts.lerobot_train", *args]
+    exported = checkpoint_step(out)
+    bar = tqdm(total=job.steps, initial=offset + exported, desc=desc, unit="step", dynamic_ncols=True)
     with (
         open(log, "a") as logf,
-        subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env, bufsize=1) as proc,
+        subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env, bufsize=1) as proc,
     ):
         for line in proc.stdout:
             logf.write(line)
             if " step:" in line and " loss:" in line:  # one metrics line per log_freq steps
                 bar.update(min(job.log_freq, job.steps - bar.n))
-            if job.partial is not None and out.exists():
-                step = checkpoint_step(out)
-                if step > exported:
-                    _export_partial(out, job.partial, offset + step)
-                    exported = step
+            step = checkpoint_step(out) if job.partial is not None else 0
+            if step > exported:
+                _export_partial(out, job.partial, offset + step)
+                exported = step
         code = proc.wait()
-    if code == 0:
-        bar.update(job.steps - bar.n)
+    bar.update(job.steps - bar.n if code == 0 else 0)
     bar.close()
     if code != 0:
         raise RuntimeError(f"lerobot-train exited with {code}; its output is in {log}")
-    if not is_pretrained_dir(final):
-        raise RuntimeError(f"lerobot-train finished without {final}; its output is in {log}")
-    done.write_text(str(final) + "\n")
-    return final
 
 
 def _export_partial(out: Path, partial: Path, step: int) -> None:
-    export_policy(out / "checkpoints" / "last" / "pretrained_model", partial, overwrite=True)
-    (partial / "step.json").write_text(json.dumps({"step": step}) + "\n")
+    # The step travels inside the exported folder, which appears whole or not at all.
+    src = out / "checkpoints" / "last" / "pretrained_model"
+    with atomic_path(src / "step.json") as tmp:
+        tmp.write_text(json.dumps({"step": step}) + "\n")
+    export_policy(src, partial, overwrite=True)
