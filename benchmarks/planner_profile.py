@@ -64,7 +64,7 @@ def profile_relaxation(planner: GcsPlanner, ics) -> dict:
         values = conic.cols.fixed(key[1], {})
         dropped = data.fix(values, conic.fixing(data, key, values))
         t.append(time.perf_counter())
-        sol = dropped.solve(conic.solvers, key)
+        sol = dropped.solve()
         t.append(time.perf_counter())
         flows = np.clip(sol.x[conic.cols.y], 0, 1)
         paths = candidate_paths(graph, flows, _seed_rng(planner, q), planner.rounding_trials)

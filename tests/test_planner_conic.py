@@ -111,6 +111,18 @@ def test_plan_costs_unchanged_from_the_reference(planner, name):
         assert _rel(planner.plan(box, finger, goal=goal, method="micp").cost, cost) < 1e-6, (box, finger)
 
 
+def test_a_plan_does_not_depend_on_earlier_plans():
+    """The same query on a fresh planner and on one that has planned others first: the same plan, to
+    the bit (rounding is seeded by the query, and no solver state carries over)."""
+    ics = sample_initial_conditions(SCENE, 16, seed=12, sampler="hard")
+    used = GcsPlanner(SCENE)
+    for ic in ics[1:]:
+        used.plan(ic.box, ic.finger)
+    a, b = GcsPlanner(SCENE).plan(ics[0].box, ics[0].finger), used.plan(ics[0].box, ics[0].finger)
+    assert a.cost == b.cost and a.modes == b.modes
+    np.testing.assert_array_equal(a.finger_waypoints, b.finger_waypoints)
+
+
 @pytest.fixture
 def compilations(monkeypatch, tmp_path):
     """Calls to cvxpy's one entry point to compilation, `Problem.get_problem_data`, with the planner's

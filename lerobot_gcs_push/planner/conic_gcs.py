@@ -25,7 +25,7 @@ import numpy as np
 
 from lerobot_gcs_push.planner import conic as conic_module
 from lerobot_gcs_push.planner import gcs, transcription
-from lerobot_gcs_push.planner.conic import Conic, Fixing, Infeasible, ParametricConic, SolverCache
+from lerobot_gcs_push.planner.conic import Conic, Fixing, Infeasible, ParametricConic
 from lerobot_gcs_push.planner.gcs import FlowSolution, GcsProgram, SolverError, free_coords
 from lerobot_gcs_push.planner.graph import ModeGraph
 from lerobot_gcs_push.planner.restriction import PathSolution
@@ -110,7 +110,6 @@ class ConicGcs:
         self.graph = graph
         self.data = data or parametric(graph)
         self.cols = EdgeColumns(graph, self.data)
-        self.solvers = SolverCache()
         self._fixings: dict[tuple, Fixing] = {}
 
     def fixing(self, conic: Conic, key: tuple, values: np.ndarray) -> Fixing:
@@ -126,7 +125,7 @@ class ConicGcs:
         try:
             dropped = tuple(i for i in range(len(allowed)) if allowed[i] <= 0)
             values, key = self.cols.fixed(dropped, {}), ("relaxation", dropped)
-            sol = conic.fix(values, self.fixing(conic, key, values)).solve(self.solvers, key)
+            sol = conic.fix(values, self.fixing(conic, key, values)).solve()
         except Infeasible:
             sol = None
         elapsed = time.perf_counter() - t0
@@ -149,7 +148,7 @@ class ConicGcs:
         try:
             values = self.cols.fixed([i for i in range(len(g.edges)) if i not in on], {i: 1.0 for i in edges})
             key = ("path", edges)
-            sol = conic.fix(values, self.fixing(conic, key, values)).solve(self.solvers, key)
+            sol = conic.fix(values, self.fixing(conic, key, values)).solve()
         except Infeasible:
             return PathSolution(edges, vertices, np.inf, {}, time.perf_counter() - t0)
         elapsed = time.perf_counter() - t0
