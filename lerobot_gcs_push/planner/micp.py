@@ -2,15 +2,15 @@
 
 cvxpy's SCIP interface rebuilds the model from a dictionary-of-keys matrix on every solve and offers
 no way to pass a starting solution. Here the MICP's conic data (conic.py, with its two-cycle cuts) is
-set for the query, the edges it forbids are dropped, and the model is built from it directly: 1.2x to
-1.9x faster than cvxpy's interface on the same program (benchmarks/planner_profile.py, 20 queries,
-two runs at load 5 and 8).
+set for the query, the edges it forbids are dropped, and the model is built from it directly: as fast
+as cvxpy's interface on the same program to 1.9x faster (benchmarks/planner_profile.py, 20 queries,
+three runs at load 4 to 8: 1.0x, 1.2x, 1.9x).
 
 A known plan can be passed as a starting point (`start`: its path as a partial solution that SCIP
 completes) or as an objective limit (`cutoff`). Measured one by one against SCIP's defaults in the
-profile (same runs, rotating order): start 7% faster in one run and 10% slower in the other; cutoff 7%
-and 20% faster, but it needs the rounded plan first (14 ms) and turns SCIP's answer into "infeasible"
-whenever the limit sits below SCIP's own value of that plan, so neither is used. Nor are the settings
+profile (same runs, rotating order): start from 7% faster to 10% slower; cutoff 7%, 20% and 25%
+faster, but it needs the rounded plan first (9-14 ms) and turns SCIP's answer into "infeasible"
+whenever the limit sits below SCIP's own value of that plan, so neither is used yet. Nor are the settings
 tried: separating off 4-5x slower, presolving off 5x slower with 3 of 20 optima wrong, assumeconvex and
 RENS off within the noise. Plans use SCIP's defaults.
 """
