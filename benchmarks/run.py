@@ -1,6 +1,6 @@
 """`make bench`: every benchmark in one run, printed and saved to results/bench.json.
 
-    python -m benchmarks.run [--only env,planner,dataset,train,ray] [--quick]
+    python -m benchmarks.run [--only env,planner,rotation,dataset,train,ray] [--quick]
 
 Medians and ratios come from one run on this machine; compare numbers from the same run only.
 """
@@ -24,12 +24,16 @@ TARGETS = {
     "planner.micp_median_s": ("<=", 1.0),
     "planner.relaxation_within_1pct_frac": (">=", 0.95),
     "dataset.demonstrations_per_min": (">=", 50.0),
+    # Issue 32, the rotating box: the planner through contact.
+    "rotation.plan_median_s": ("<=", 0.5),
+    "rotation.gap_median": ("<=", 0.03),
+    "rotation.rounding_success_frac": (">=", 1.0),
 }
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--only", default="env,planner,dataset,train,ray")
+    ap.add_argument("--only", default="env,planner,rotation,dataset,train,ray")
     ap.add_argument("--quick", action="store_true", help="smaller samples (a smoke run, not for reporting)")
     ap.add_argument("--out", default="results/bench.json")
     args = ap.parse_args(argv)
@@ -53,6 +57,10 @@ def main(argv=None) -> int:
             from benchmarks import train_bench as mod
 
             res = mod.run()
+        elif name == "rotation":
+            from benchmarks import rotation_bench as mod
+
+            res = mod.run(n=5 if args.quick else 20)
         elif name == "ray":
             from benchmarks import ray_bench as mod
 

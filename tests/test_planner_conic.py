@@ -102,11 +102,16 @@ def test_micp_equals_cvxpy_scip(planner):
 @pytest.mark.parametrize("name", sorted(REFERENCE["sets"]))
 def test_plan_costs_unchanged_from_the_reference(planner, name):
     """Plan costs recorded from the planner before its conic path existed (cvxpy programs, commit
-    745e4fa): relaxation + rounding, and the MICP on the first queries."""
+    745e4fa): relaxation + rounding never costs more, and where it costs less (the flow decomposition's
+    candidates find a path the walks missed) it is the MICP's global optimum; the MICP is unchanged."""
     data = REFERENCE["sets"][name]
     goal = REFERENCE["goal"] if name == "goal" else None
     for (box, finger), cost in zip(data["ics"], data["relaxation"]):
-        assert _rel(planner.plan(box, finger, goal=goal).cost, cost) < 1e-6, (box, finger)
+        now = planner.plan(box, finger, goal=goal).cost
+        assert now <= cost * (1 + 1e-6), (box, finger, now, cost)
+        if now < cost * (1 - 1e-6):
+            exact = planner.plan(box, finger, goal=goal, method="micp").cost
+            assert _rel(now, exact) < 1e-6, (box, finger, now, exact)
     for (box, finger), cost in list(zip(data["ics"], data.get("micp", [])))[:6]:
         assert _rel(planner.plan(box, finger, goal=goal, method="micp").cost, cost) < 1e-6, (box, finger)
 
