@@ -46,7 +46,9 @@ class GcsPlanner:
         method: str = "relaxation",
         structure: str = "branches",
         num_pushes: int = 2,
-        rounding_trials: int = 8,
+        # Flow walks per plan, beside two flow-decomposition paths (rounding.py): 3 walks lost nothing
+        # against 8 on 600 sampled queries and 260 reference ones, at 14 % less time per plan.
+        rounding_trials: int = 3,
         seed: int = 0,
         goal_tolerance: float = 1e-6,
         compile_now: bool = True,
