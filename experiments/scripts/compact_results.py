@@ -1,8 +1,8 @@
 """One compact JSON record per evaluation, from the folder `gcs-push evaluate` wrote (runs.jsonl, settings.json,
 summary.json, command.txt), and the tables the READMEs quote, printed back from such a record.
 
-    python experiments/scripts/compact_results.py make results/active_round11_hard            # -> results/active_round11_hard.json
-    python experiments/scripts/compact_results.py make --out=R.json DIR_A DIR_B              # several evaluations in one file
+    python experiments/scripts/compact_results.py make results/active_round11_hard  # -> .../active_round11_hard.json
+    python experiments/scripts/compact_results.py make --out=R.json DIR_A DIR_B    # several evaluations in one file
     python experiments/scripts/compact_results.py show results/active_round11_hard.json [--policy=LABEL_PART]
 
 A record keeps, per policy variant (the label `gcs-push evaluate` gives it): the run counts and success
@@ -85,15 +85,26 @@ def compact(d: Path) -> dict:
             "successes": len(succ),
             "successes_0.2": sum(bool(r["success_0.2"]) for r in rs),
         }
-        for k, rk in (("success_sim_time_s", "sim_time_s"), ("run_time_s", "run_time_s"),
-                      ("plan_time_s", "plan_time_s"), ("total_time_s", "total_time_s")):
+        for k, rk in (
+            ("success_sim_time_s", "sim_time_s"),
+            ("run_time_s", "run_time_s"),
+            ("plan_time_s", "plan_time_s"),
+            ("total_time_s", "total_time_s"),
+        ):
             v[k] = _r(_mean(r[rk] for r in succ))
             assert v[k] is None or abs(v[k] - s[k]) < 1e-4, (d, label, k)
         assert abs(v["successes"] / v["runs"] - s["success"]) < 1e-9
         has_regret = "regret_mean" in s
         if has_regret:
-            for k in ("regret_mean", "regret_p95", "chunk_regret_p95", "runs_with_large_regret",
-                      "first_large_regret_s_median", "large_regret_m", "unscored_chunks"):
+            for k in (
+                "regret_mean",
+                "regret_p95",
+                "chunk_regret_p95",
+                "runs_with_large_regret",
+                "first_large_regret_s_median",
+                "large_regret_m",
+                "unscored_chunks",
+            ):
                 v[k] = _r(s.get(k)) if k != "unscored_chunks" else s.get(k)
             assert abs(_mean(r["regret"] for r in rs) - s["regret_mean"]) < 1e-9
             assert abs(_p95([r["regret"] for r in rs]) - s["regret_p95"]) < 1e-9
@@ -107,12 +118,16 @@ def compact(d: Path) -> dict:
             ri = [r for r in rs if r["initial_condition_index"] == i]
             si = [r for r in ri if r["success"]]
             reg = [r["regret"] for r in ri if r.get("regret") is not None]
-            rows.append([
-                len(ri), len(si), sum(bool(r["success_0.2"]) for r in ri),
-                _r(_mean(r["sim_time_s"] for r in si), 3),
-                _r(_mean(reg), 3) if reg else None,
-                _r(statistics.median(reg), 3) if reg else None,
-            ])
+            rows.append(
+                [
+                    len(ri),
+                    len(si),
+                    sum(bool(r["success_0.2"]) for r in ri),
+                    _r(_mean(r["sim_time_s"] for r in si), 3),
+                    _r(_mean(reg), 3) if reg else None,
+                    _r(statistics.median(reg), 3) if reg else None,
+                ]
+            )
             if len(ri):
                 assert abs(len(si) / len(ri) - s["per_initial_condition"][str(i)]["success"]) < 1e-9
         v["per_ic"] = rows
@@ -121,13 +136,22 @@ def compact(d: Path) -> dict:
             for kind in dict.fromkeys(k for k in kinds if k):
                 rk = [r for r in rs if kinds[r["initial_condition_index"]] == kind]
                 reg = [r["regret"] for r in rk if r.get("regret") is not None]
-                fam[kind] = [len(rk), sum(bool(r["success"]) for r in rk),
-                             _r(statistics.median(reg), 3) if reg else None]
+                fam[kind] = [
+                    len(rk),
+                    sum(bool(r["success"]) for r in rk),
+                    _r(statistics.median(reg), 3) if reg else None,
+                ]
             v["families"] = fam
         v["failures"] = [
-            [r["initial_condition_index"], r["run"], _r(r["final_distance"], 3), _r(r["sim_time_s"], 2),
-             _r(r.get("regret"), 3)]
-            for r in sorted(rs, key=lambda r: (r["initial_condition_index"], r["run"])) if not r["success"]
+            [
+                r["initial_condition_index"],
+                r["run"],
+                _r(r["final_distance"], 3),
+                _r(r["sim_time_s"], 2),
+                _r(r.get("regret"), 3),
+            ]
+            for r in sorted(rs, key=lambda r: (r["initial_condition_index"], r["run"]))
+            if not r["success"]
         ]
         variants[label] = v
     out = {
@@ -137,8 +161,17 @@ def compact(d: Path) -> dict:
         "goal": list(GOAL),
         "initial_conditions": {
             "columns": ["box_x", "box_y", "finger_x", "finger_y", "kind", "value_initial_m"],
-            "rows": [[_r(ic["box"][0], 3), _r(ic["box"][1], 3), _r(ic["finger"][0], 3), _r(ic["finger"][1], 3),
-                      ic.get("kind"), _r(value0.get(i), 3)] for i, ic in enumerate(ics)],
+            "rows": [
+                [
+                    _r(ic["box"][0], 3),
+                    _r(ic["box"][1], 3),
+                    _r(ic["finger"][0], 3),
+                    _r(ic["finger"][1], 3),
+                    ic.get("kind"),
+                    _r(value0.get(i), 3),
+                ]
+                for i, ic in enumerate(ics)
+            ],
         },
         "per_ic_columns": PER_IC,
         "families_columns": ["runs", "successes", "regret_median_m"],
@@ -179,15 +212,22 @@ def show(path: Path, policy: str | None) -> None:
     for name, rec in load(path).items():
         vs = rec["variants"]
         ics = rec["initial_conditions"]["rows"]
-        print(f"## {name} (seed {rec['settings']['seed']}, {len(ics)} x {rec['settings']['runs']}, "
-              f"timeout {rec['settings']['timeout_s']:g} s)\n")
-        def ref(v):  # GCS beside it: closed loop under the same disturbances, else open loop
-            same = [g for g in vs.values() if g["policy"] == "gcs-closed-loop" and g["disturbances"] == v["disturbances"]]
+        print(
+            f"## {name} (seed {rec['settings']['seed']}, {len(ics)} x {rec['settings']['runs']}, "
+            f"timeout {rec['settings']['timeout_s']:g} s)\n"
+        )
+
+        def ref(v, vs=vs):  # GCS beside it: closed loop under the same disturbances, else open loop
+            same = [
+                g for g in vs.values() if g["policy"] == "gcs-closed-loop" and g["disturbances"] == v["disturbances"]
+            ]
             opened = [g for g in vs.values() if g["policy"] == "gcs-open-loop"]
             return (opened if not v["disturbances"] and opened else same or opened or [None])[0]
 
-        print("| policy | successes | success 0.1 / 0.2 m | success sim time (s) | over GCS | median IC ratio "
-              "| run time (s) | regret mean / p95 (m) | path over optimum | speed over GCS | ICs below 4/5 |")
+        print(
+            "| policy | successes | success 0.1 / 0.2 m | success sim time (s) | over GCS | median IC ratio "
+            "| run time (s) | regret mean / p95 (m) | path over optimum | speed over GCS | ICs below 4/5 |"
+        )
         print("|---|---|---|---|---|---|---|---|---|---|---|")
         for label, v in vs.items():
             if policy and policy not in label:
@@ -206,10 +246,13 @@ def show(path: Path, policy: str | None) -> None:
                 if gsum:
                     speed_r = (ss["path_m"] / ss["sim_time_s"]) / (gsum["path_m"] / gsum["sim_time_s"])
             below = sum(1 for row in v["per_ic"] if row[0] and row[1] / row[0] < 0.8)
-            print(f"| {label} | {v['successes']} / {v['runs']} | {_f(v['successes'] / v['runs'])} / "
-                  f"{_f(v['successes_0.2'] / v['runs'])} | {_f(v['success_sim_time_s'], 1)} | {_f(ratio) + 'x' if ratio else '-'} | "
-                  f"{_f(statistics.median(ratios)) if ratios else '-'} | {_f(v['run_time_s'])} | "
-                  f"{_f(v.get('regret_mean'))} / {_f(v.get('regret_p95'))} | {_f(path_r)} | {_f(speed_r)} | {below} |")
+            print(
+                f"| {label} | {v['successes']} / {v['runs']} | {_f(v['successes'] / v['runs'])} / "
+                f"{_f(v['successes_0.2'] / v['runs'])} | {_f(v['success_sim_time_s'], 1)} | "
+                f"{_f(ratio) + 'x' if ratio else '-'} | "
+                f"{_f(statistics.median(ratios)) if ratios else '-'} | {_f(v['run_time_s'])} | "
+                f"{_f(v.get('regret_mean'))} / {_f(v.get('regret_p95'))} | {_f(path_r)} | {_f(speed_r)} | {below} |"
+            )
         print()
         for label, v in vs.items():
             if policy and policy not in label:
