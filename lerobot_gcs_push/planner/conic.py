@@ -60,13 +60,15 @@ class Conic:
         return (fixing or Fixing(self, ~np.isnan(values))).apply(self, values)
 
     def solve(self) -> ConicSolution:
-        """Clarabel on this data, with its default settings (those cvxpy passes too). A new solver each
+        """Clarabel on this data, at tolerances 1e-7 (cvxpy passes its defaults, 1e-8). A new solver each
         time: reusing one through Clarabel's `update` saves its setup (a fifth of a relaxation's time),
         but where the relaxation's optimum is not unique its flows then differ from a fresh solve's (by
         up to 0.26 on 120 queries), and a plan would depend on what the planner solved before."""
         n = len(self.c)
         settings = clarabel.DefaultSettings()
         settings.verbose = False
+        # 1e-7 instead of Clarabel's 1e-8: plans 6 % faster, every reference cost unchanged to 1e-6.
+        settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = 1e-7
         solver = clarabel.DefaultSolver(sp.csc_matrix((n, n)), self.c, self.A, self.b, self.cones(), settings)
         sol = solver.solve()
         status = str(sol.status)
