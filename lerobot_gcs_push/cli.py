@@ -37,11 +37,20 @@ class PlanConfig:
     method: str = "relaxation"
     # Print one JSON object per plan (one per line) instead of a summary.
     jsonl: bool = False
+    # The task: GcsPushBox-v0 (GCS over the box's modes), or a rotating slider (GcsPushBoxSE2-v0,
+    # GcsPushT-v0), planned through contact (lerobot_gcs_push/contact/, work in progress: issue 32).
+    env_id: str = "GcsPushBox-v0"
+    # The slider's heading in radians (rotating sliders; a file's entries carry their own "heading").
+    heading: float = 0.0
 
     def __post_init__(self) -> None:
         from lerobot_gcs_push.planner import check_method
+        from lerobot_gcs_push.registration import SCENES
+        from lerobot_gcs_push.rollout import check_env_id
 
         check_method(self.method)
+        if SCENES[check_env_id(self.env_id)].rotates and (self.method != "relaxation" or self.goal is not None):
+            raise ValueError(f"{self.env_id} plans with the relaxation to the scene's goal pose only")
         if self.initial_conditions and (self.box or self.finger):
             raise ValueError("give either initial_conditions or box/finger, not both")
         if not self.initial_conditions and not (self.box and self.finger):
@@ -98,12 +107,15 @@ class DemoConfig:
 
 def run_plan(cfg: PlanConfig) -> None:
     from lerobot_gcs_push.planner import GcsPlanner
+    from lerobot_gcs_push.registration import SCENES
 
     queries = (
         load_initial_conditions(cfg.initial_conditions)
         if cfg.initial_conditions
         else [{"box": cfg.box, "finger": cfg.finger}]
     )
+    if SCENES[cfg.env_id].rotates:
+        return _plan_through_contact(cfg, queries)
     planner = GcsPlanner(Scene(), method=cfg.method)
     for q in queries:
         plan = planner.plan(q["box"], q["finger"], goal=cfg.goal, method=cfg.method)
@@ -116,6 +128,33 @@ def run_plan(cfg: PlanConfig) -> None:
         )
         print("modes: " + " -> ".join(plan.modes or ["(box already at the goal)"]))
         print(f"box ends at {plan.box_final.round(4).tolist()}, execution takes {plan.duration():.1f} s")
+
+
+def _plan_through_contact(cfg: PlanConfig, queries: list[dict]) -> None:
+    from lerobot_gcs_push.contact.planner import ContactPlanner, PlanningError
+    from lerobot_gcs_push.registration import SCENES
+
+    planner = ContactPlanner(SCENES[cfg.env_id])
+    for q in queries:
+        pose = [*q["box"], float(q.get("heading", cfg.heading))]
+        try:
+            plan = planner.plan(pose, q["finger"])
+        except PlanningError as err:  # one query's failure is a line of output, not the end of the file
+            print(
+                json.dumps({"slider_pose": pose, "finger": q["finger"], "error": str(err)})
+                if cfg.jsonl
+                else f"no plan: {err}"
+            )
+            continue
+        final = plan.slider_poses[-1].round(4).tolist()
+        if cfg.jsonl:
+            print(json.dumps(plan.to_json() | {"slider_final": final}), flush=True)
+            continue
+        print(
+            f"cost {plan.cost:.4f} (certified lower bound {plan.lower_bound:.4f}, gap {100 * plan.gap:.1f} %), "
+            f"solved in {plan.solve_time_s:.2f} s; modes: {' -> '.join(plan.modes)}"
+        )
+        print(f"slider ends at {final} (x, y, heading)")
 
 
 def run_generate(cfg: GenerateConfig) -> None:

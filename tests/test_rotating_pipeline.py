@@ -234,3 +234,24 @@ def test_initial_conditions_from_a_file_keep_their_headings_and_are_checked_at_t
     with pytest.raises(ValueError, match="initial condition 0.*overlaps"):
         evaluate(EvaluateConfig(**common, initial_conditions=str(ics), output_dir=str(tmp_path / "refused")))
     assert not (tmp_path / "refused" / "runs.jsonl").exists()
+
+
+def test_gcs_push_plan_plans_a_rotating_box_through_contact(tmp_path):
+    """`gcs-push plan --env_id=GcsPushBoxSE2-v0 --initial_conditions=FILE --jsonl=true`: one object per entry,
+    each ending at the goal pose from the entry's own pose and finger, its cost above its certified bound."""
+    ics = [{"box": [2.0, -1.5], "finger": [-2.0, 1.0], "heading": 0.5}, {"box": [-3.0, 2.0], "finger": [3.0, 3.0]}]
+    path = tmp_path / "ics.json"
+    path.write_text(json.dumps(ics))
+    args = ["plan", f"--env_id={SE2_ENV_ID}", f"--initial_conditions={path}", "--jsonl=true"]
+    out = subprocess.run(gcs_push(*args), capture_output=True, text=True, timeout=600, check=True)
+    plans = [json.loads(line) for line in out.stdout.splitlines()]
+    assert len(plans) == len(ics)
+    goal = np.array(SCENES[SE2_ENV_ID].goal_pose)
+    for ic, plan in zip(ics, plans, strict=True):
+        assert plan["lower_bound"] <= plan["cost"] + 1e-9 and plan["solve_time_s"] > 0
+        np.testing.assert_allclose(plan["slider_poses"][0], [*ic["box"], ic.get("heading", 0.0)], atol=1e-6)
+        np.testing.assert_allclose(plan["finger_path"][0], ic["finger"], atol=1e-6)
+        final = np.array(plan["slider_final"])
+        assert np.linalg.norm(final[:2] - goal[:2]) < 0.05
+        # The square looks the same every quarter turn: the heading error is taken modulo pi/2.
+        assert abs(wrap_angle(4 * (final[2] - goal[2]))) / 4 < 0.05
