@@ -97,6 +97,26 @@ def test_the_tail_of_the_schedule_is_the_presets():
     assert cosine_lr(110, 110, 2e-4, 10) == pytest.approx(0.0, abs=1e-12)
 
 
+def test_a_state_file_resumes_from_a_clone_elsewhere(tmp_path, monkeypatch):
+    from lerobot_gcs_push.improve import ImproveConfig, Improver
+
+    # Made in one checkout with absolute paths inside it; the copy moves to another checkout.
+    cfg = {"train_config": str(ROOT / "configs" / "policy" / "diffusion_cpu.json"), "work_dir": str(tmp_path / "w")}
+    first, second = tmp_path / "a", tmp_path / "b"
+    for root in (first, second):
+        (root / "state").mkdir(parents=True)
+    monkeypatch.chdir(first)
+    made = Improver(ImproveConfig(policy=str(first / "pol"), state_dir="state", **cfg))
+    made.state.save()
+    stored = json.loads((first / "state" / "state.json").read_text())["settings"]
+    assert stored["policy"] == "pol"
+    shutil.copy(first / "state" / "state.json", second / "state" / "state.json")
+    monkeypatch.chdir(second)
+    Improver(ImproveConfig(policy="pol", state_dir="state", **cfg))  # the same settings
+    with pytest.raises(ValueError, match="policy"):
+        Improver(ImproveConfig(policy="other", state_dir="state", **cfg))
+
+
 def test_improve_from_nothing_resumes_after_kill_9_inside_each_stage(tmp_path):
     """Base demonstrations, first training, and round 1's rollouts, collect, fine-tune and validation,
     each SIGKILLed mid-stage and resumed; after the fine-tune's kill the work folder and the datasets are
