@@ -12,6 +12,10 @@ alternates from one start to the next so machine noise hits both alike:
   is the whole query, its gap (cost - bound) / cost is certified by the relaxation's bound;
 * baseline: `ContactPlanner.baseline` (SNOPT from a straight-line guess over one heuristic push).
 
+Then each start's episode in the env (no disturbances, 60 s), by the envs' expert: closed-loop (replanning
+when the slider strays from the plan, contact/expert.py) and open-loop (the first plan, executed); success
+is the env's, 95 % coverage of the goal outline.
+
 The one-time build and compile of the relaxation is reported apart (warm_up_s).
 """
 
@@ -26,7 +30,10 @@ import numpy as np
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
 from lerobot_gcs_push.contact import ContactPlanner, PlanningError  # noqa: E402
+from lerobot_gcs_push.registration import SCENES, SE2_ENV_ID, TEE_ENV_ID  # noqa: E402
 from lerobot_gcs_push.scene import Scene  # noqa: E402
+
+ENV_IDS = {"box": SE2_ENV_ID, "tee": TEE_ENV_ID}
 
 
 def random_starts(planner: ContactPlanner, n: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -90,14 +97,45 @@ def _med(x) -> float:
     return float(np.median(x)) if len(x) else float("nan")
 
 
-def run(n: int = 20, seed: int = 0, slider: str = "box", **planner_kw) -> dict:
-    scene = Scene(slider=slider, rotates=True)
+def execute(env_id: str, planner: ContactPlanner, starts, mode: str) -> dict:
+    """Episodes of the envs' expert from `starts` in the env (60 s, no disturbances)."""
+    import gymnasium as gym
+
+    import lerobot_gcs_push  # noqa: F401  (registers the envs)
+    from lerobot_gcs_push.expert import ExpertConfig, make_expert
+    from lerobot_gcs_push.rollout import rollout
+
+    env = gym.make(env_id, max_sim_time_s=60.0, image_size=(32, 32)).unwrapped  # the camera is not scored
+    expert = make_expert(env.scene, env.fps, ExpertConfig(mode=mode), planner)
+    ok, replans, sim_time, over_plan = 0, [], [], []
+    for k, (pose, finger) in enumerate(starts):
+        try:
+            res = rollout(env, expert, pose[:2], finger, seed=k, heading=float(pose[2]))
+        except PlanningError:
+            continue
+        ok += res["success"]
+        replans.append(res["replans"])
+        if res["success"]:
+            sim_time.append(res["sim_time_s"])
+            over_plan.append(res["sim_time_s"] / expert.plan.duration())
+    env.close()
+    return {
+        f"{mode}_success_frac": ok / len(starts),
+        f"{mode}_replans_median": _med(replans),
+        f"{mode}_sim_time_median_s": _med(sim_time),
+        f"{mode}_sim_time_over_first_plan_median": _med(over_plan),  # the first plan's commanded duration
+    }
+
+
+def run(n: int = 20, seed: int = 0, slider: str = "box", episodes: bool = True, **planner_kw) -> dict:
+    scene = SCENES[ENV_IDS[slider]]
     t0 = time.perf_counter()
     planner = ContactPlanner(scene, **planner_kw)
     warm_up_s = planner.warm_up() + (time.perf_counter() - t0)
     times, relax_times, round_times, gaps, costs, base_costs, base_times, ratio = [], [], [], [], [], [], [], []
     rounded = base_ok = verified = 0
-    for k, (pose, finger) in enumerate(random_starts(planner, n, seed)):
+    starts = random_starts(planner, n, seed)
+    for k, (pose, finger) in enumerate(starts):
         plan = base = None
         for method in ("relaxation", "baseline") if k % 2 == 0 else ("baseline", "relaxation"):
             try:
@@ -121,6 +159,10 @@ def run(n: int = 20, seed: int = 0, slider: str = "box", **planner_kw) -> dict:
             base_times.append(base.solve_time_s)
             if plan is not None:
                 ratio.append(base.cost / plan.cost)
+    sim = {}
+    if episodes:
+        for mode in ("closed-loop", "open-loop"):
+            sim |= execute(ENV_IDS[slider], planner, starts, mode)
     return {
         "n": float(n),
         "load_avg_1min": os.getloadavg()[0],  # 2 cores shared: timings scale with this
@@ -139,6 +181,8 @@ def run(n: int = 20, seed: int = 0, slider: str = "box", **planner_kw) -> dict:
         "baseline_median_s": _med(base_times),
         "baseline_cost_median": _med(base_costs),
         "baseline_over_plan_cost_median": _med(ratio),
+        "knots": float(planner.knots),
+        **sim,
     }
 
 
@@ -148,17 +192,19 @@ def main(argv=None) -> dict:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--slider", default="box", choices=("box", "tee"))
     ap.add_argument("--layers", type=int, default=2)
-    ap.add_argument("--knots", type=int, default=6)
+    ap.add_argument("--knots", type=int, default=None, help="default: enough to turn the slider to its goal")
     ap.add_argument("--pieces", type=int, default=1, help="contact-location intervals per face")
     ap.add_argument("--window-margin", type=float, default=None, help="heading window (rad) and its chord cut")
     ap.add_argument("--edge-copies", action="store_true", help="one contact copy per entering edge (last layer)")
     ap.add_argument("--max-step-rotation", type=float, default=0.2, help="rad per knot step")
     ap.add_argument("--no-rlt", action="store_true")
+    ap.add_argument("--no-episodes", action="store_true", help="plans only, no episodes in the env")
     args = ap.parse_args(argv)
     stats = run(
         args.n,
         args.seed,
         args.slider,
+        not args.no_episodes,
         layers=args.layers,
         knots=args.knots,
         rlt=not args.no_rlt,

@@ -24,7 +24,7 @@ import numpy as np
 
 from lerobot_gcs_push.dataset import GenerateConfig, GenerateReport, dataset_root, generate
 from lerobot_gcs_push.evaluation import GCS_POLICIES, read_runs
-from lerobot_gcs_push.expert import check_gcs_expert, plannable
+from lerobot_gcs_push.expert import check_cost_to_go, plannable
 from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.registration import ENV_ID, SCENES
 from lerobot_gcs_push.scene import Scene
@@ -143,7 +143,7 @@ def rollouts_env_id(folders: list[str]) -> str:
 def collect(cfg: CollectConfig) -> tuple[GenerateReport, list[dict]]:
     """Branch states from the rollouts, labelled by the closed-loop GCS expert, as a LeRobotDataset."""
     env_id = rollouts_env_id(cfg.rollouts)
-    check_gcs_expert(env_id, "collect labels the policy's states with it")
+    check_cost_to_go(env_id, "collect labels the policy's states with it")
     records = []
     for folder in cfg.rollouts:
         for rec in read_runs(Path(folder) / "runs.jsonl"):

@@ -33,6 +33,7 @@ from lerobot_gcs_push.scene import (
     load_initial_conditions,
     sample_initial_conditions,
 )
+from lerobot_gcs_push.success import success_measures
 
 GCS_POLICIES = ("gcs-open-loop", "gcs-closed-loop")
 # The named evaluation sets: the paper's protocol set (uniform, seed 1000) and the hard set (seed 3000).
@@ -90,7 +91,7 @@ def check_device(device: str) -> str:
 @dataclass
 class EvaluateConfig:
     # The registered env: GcsPushBox-v0 (the box that cannot turn), GcsPushBoxSE2-v0 or GcsPushT-v0
-    # (rotating sliders, which succeed by coverage; no GCS expert or regret for them yet).
+    # (rotating sliders, which succeed by coverage; their GCS experts plan through contact; no regret yet).
     env_id: str = ENV_ID
     # gcs-open-loop, gcs-closed-loop, or LeRobot pretrained_model directories:
     # --policies='[gcs-open-loop,policies/diffusion_cpu]'.
@@ -140,7 +141,7 @@ class EvaluateConfig:
     ray_address: str | None = None
 
     def __post_init__(self) -> None:
-        from lerobot_gcs_push.expert import check_gcs_expert
+        from lerobot_gcs_push.expert import check_cost_to_go
         from lerobot_gcs_push.rollout import check_env_id
 
         check_env_id(self.env_id)
@@ -152,12 +153,10 @@ class EvaluateConfig:
             raise ValueError(f"timeout_s must be positive, got {self.timeout_s}")
         for p in self.policies:
             check_policy(p)
-            if p in GCS_POLICIES:
-                check_gcs_expert(self.env_id, f"--policies asks for {p}")
         if self.regret is None:
             self.regret = not SCENES[self.env_id].rotates
         elif self.regret:
-            check_gcs_expert(self.env_id, "regret is scored against its cost-to-go: leave --regret unset or false")
+            check_cost_to_go(self.env_id, "regret is scored against it: leave --regret unset or false")
         check_sampler(self.sampler)
         if self.seed is None:
             self.seed = NAMED_SET_SEEDS[self.sampler]
@@ -240,37 +239,6 @@ def initial_conditions(cfg: EvaluateConfig) -> list[dict]:
     ]
 
 
-@dataclass(frozen=True)
-class SuccessMeasures:
-    """How an env's runs are scored: the success rule (the env's `is_success`) and a second, looser
-    measure beside it, with their names in the tables."""
-
-    title: str  # Table I's title: the success rule
-    strict: str  # the success column's header
-    loose_key: str  # the record key of the second measure
-    loose: str  # its column's header
-    per_ic: str  # Table II's title
-
-
-def success_measures(cfg: EvaluateConfig) -> SuccessMeasures:
-    """The box: the paper's radius and a looser one. A rotating slider: coverage of the goal outline,
-    and beside it the mean final coverage (how close the failures came)."""
-    scene = SCENES[cfg.env_id]
-    if scene.rotates:
-        rule = f"coverage >= {scene.success_coverage:g}"
-        return SuccessMeasures(
-            f"success ({rule})", "success", "coverage", "mean coverage", f"success ({rule}) / mean coverage"
-        )
-    thr1, thr2 = cfg.success_thresholds
-    return SuccessMeasures(
-        f"success (box within {thr1:g} m)",
-        f"success {thr1:g} m",
-        f"success_{thr2:g}",
-        f"success {thr2:g} m",
-        f"success per initial condition ({thr1:g} m / {thr2:g} m)",
-    )
-
-
 # --- rollouts, in worker processes --------------------------------------------------------------------
 class _Runner:
     def __init__(self, cfg: EvaluateConfig, out: Path):
@@ -315,13 +283,13 @@ class _Runner:
 
     def expert(self, name: str):
         if name not in self._experts:
-            from lerobot_gcs_push.expert import ExpertConfig, GcsExpert
-            from lerobot_gcs_push.planner import GcsPlanner
+            from lerobot_gcs_push.expert import ExpertConfig, make_expert
 
-            planner = self._experts.get("_planner") or GcsPlanner(self.envs[False].scene)
-            self._experts["_planner"] = planner
-            mode = name.removeprefix("gcs-")
-            self._experts[name] = GcsExpert(planner, self.envs[False].fps, ExpertConfig(mode=mode))
+            env = self.envs[False]
+            config = ExpertConfig(mode=name.removeprefix("gcs-"))
+            expert = make_expert(env.scene, env.fps, config, self._experts.get("_planner"))
+            self._experts["_planner"] = expert.planner  # one planner for both experts
+            self._experts[name] = expert
         return self._experts[name]
 
     def learned(self, path: str):

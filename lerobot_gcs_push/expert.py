@@ -18,16 +18,31 @@ from lerobot_gcs_push.planner.plan import DWELL, PUSH, Schedule
 EXPERTS = ("open-loop", "closed-loop")
 
 
-def check_gcs_expert(env_id: str, needed_by: str = "") -> None:
-    """Raise a ValueError unless `env_id` has the GCS experts and cost-to-go of this module.
+def check_cost_to_go(env_id: str, needed_by: str = "") -> None:
+    """Raise a ValueError unless `env_id` has the GCS cost-to-go of this module (regret, and active data,
+    which labels states by it).
 
-    They plan with the box that cannot turn: a rotating slider needs the planner through contact
-    (lerobot_gcs_push/contact/), which is not wired in yet. Without this check the box planner would
-    plan a T as if it were a box that cannot turn, silently."""
+    It plans with the box that cannot turn. A rotating slider has experts (`make_expert`), but no cost-to-go
+    yet: V at every chunk of every rollout means thousands of plans through contact, at 0.4-3 s each.
+    Without this check the box planner would score a T as if it were a box that cannot turn, silently."""
     from lerobot_gcs_push.registration import SCENES
 
     if SCENES[env_id].rotates:
-        raise ValueError(f"no GCS expert for {env_id} yet{f' ({needed_by})' if needed_by else ''}")
+        raise ValueError(f"no GCS cost-to-go for {env_id} yet{f' ({needed_by})' if needed_by else ''}")
+
+
+def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=None):
+    """The scene's GCS expert: over the box's modes (`GcsExpert`) or, for a rotating slider, through contact
+    (`contact.expert.ContactExpert`). `planner` shares one planner between experts (it is costly to build)."""
+    config = config or ExpertConfig()
+    if scene.rotates:
+        from lerobot_gcs_push.contact import ContactPlanner
+        from lerobot_gcs_push.contact.expert import ContactExpert
+
+        if config.method != "relaxation":
+            raise ValueError(f"a rotating slider plans with the relaxation only, not {config.method!r}")
+        return ContactExpert(planner or ContactPlanner(scene), fps, config)
+    return GcsExpert(planner or GcsPlanner(scene, method=config.method), fps, config)
 
 
 @dataclass

@@ -9,6 +9,7 @@ import numpy as np
 
 from lerobot_gcs_push.registration import SCENES
 from lerobot_gcs_push.scene import Scene
+from lerobot_gcs_push.success import success_measures
 
 OUTLINES_ALONG_PATH = 4  # a rotating slider's outlines drawn along a run, its end included
 
@@ -45,8 +46,6 @@ def fig6_success_map(cfg, out: Path, records: list[dict], ics: list[dict]) -> Pa
     labels = _variants(records)
     if not labels:
         return None
-    from lerobot_gcs_push.evaluation import success_measures
-
     plt = _plt()
     scene = SCENES[cfg.env_id]
     measure = success_measures(cfg)

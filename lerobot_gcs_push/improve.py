@@ -143,10 +143,10 @@ class ImproveConfig:
 
     def __post_init__(self) -> None:
         from lerobot_gcs_push.evaluation import check_device
-        from lerobot_gcs_push.expert import check_gcs_expert
+        from lerobot_gcs_push.expert import check_cost_to_go
         from lerobot_gcs_push.rollout import check_env_id
 
-        check_gcs_expert(check_env_id(self.env_id), "rounds label the policy's states with it")
+        check_cost_to_go(check_env_id(self.env_id), "rounds label the policy's states with it")
         # One spelling of each path: the policy's is also its label in every evaluation record.
         for name in ("policy", "state_dir", "work_dir", "train_config"):
             setattr(self, name, _canonical(getattr(self, name)))

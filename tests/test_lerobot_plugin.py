@@ -302,3 +302,51 @@ def test_gcs_push_evaluate_runs_a_lerobot_checkpoint(checkpoint, tmp_path):
         assert r["success"] == (r["final_distance"] <= 0.1)
         assert r["success"] or r["sim_time_s"] == pytest.approx(3.0)
     assert sum(v["runs"] for v in summary["variants"].values()) == 4
+
+
+# --- the T: the expert's demonstrations through LeRobot's own tools ------------------------------------------
+TEE_REPO_ID = "local/gcs_push_t"
+
+
+@pytest.fixture(scope="session")
+def tee_dataset(lerobot_home, tmp_path_factory) -> Path:
+    """One closed-loop demonstration of the T, from the first start of its uniform set (the README's GIF)."""
+    from lerobot_gcs_push.dataset import GenerateConfig, generate
+    from lerobot_gcs_push.registration import SCENES, TEE_ENV_ID
+    from lerobot_gcs_push.scene import sample_initial_conditions
+
+    (ic,) = sample_initial_conditions(SCENES[TEE_ENV_ID], 1, seed=1000, sampler="uniform")
+    ics = tmp_path_factory.mktemp("tee_ics") / "ics.json"
+    ics.write_text(json.dumps([ic.to_json()]))
+    root = lerobot_home / TEE_REPO_ID
+    cfg = GenerateConfig(env_id=TEE_ENV_ID, initial_conditions=str(ics), repo_id=TEE_REPO_ID, root=str(root),
+                         workers=1, max_sim_time_s=60, progress=False)  # fmt: skip
+    report = generate(cfg)
+    assert report.episodes == 1, "the closed-loop expert should push this T to coverage"
+    return root
+
+
+@pytest.mark.slow
+def test_lerobot_train_and_eval_on_the_tee(tee_dataset, lerobot_home, tmp_path):
+    """lerobot-train 2 steps on the T's demonstrations with --env.type=gcs_push_t, then lerobot-eval an
+    episode of the checkpoint in the T env: the T's dataset and env config fit LeRobot's own CLIs."""
+    out = tmp_path / "train"
+    common = ["--policy.down_dims=[32,64]", "--env.type=gcs_push_t"]
+    _run(
+        [str(BIN / "lerobot-train"), f"--config_path={CPU_PRESET}", f"--dataset.repo_id={TEE_REPO_ID}", "--steps=2",
+         "--batch_size=2", "--num_workers=0", "--env_eval_freq=0", "--save_freq=2", f"--output_dir={out}", *common],
+        home=lerobot_home,
+        cwd=tmp_path,
+    )  # fmt: skip
+    ckpt = out / "checkpoints" / "last" / "pretrained_model"
+    train_cfg = json.loads((ckpt / "train_config.json").read_text())
+    assert train_cfg["env"]["type"] == "gcs_push_t" and train_cfg["dataset"]["repo_id"] == TEE_REPO_ID
+    ev = tmp_path / "eval"
+    _run(
+        [str(BIN / "lerobot-eval"), f"--policy.path={ckpt}", "--env.type=gcs_push_t", "--env.episode_length=20",
+         "--eval.n_episodes=1", "--eval.batch_size=1", "--eval.use_async_envs=false", "--policy.device=cpu",
+         f"--output_dir={ev}"],
+        home=lerobot_home,
+        cwd=tmp_path,
+    )  # fmt: skip
+    assert _eval_info(ev)["n_episodes"] == 1

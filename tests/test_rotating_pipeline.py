@@ -1,5 +1,6 @@
 """The pipeline on the rotating envs (issue 32, part 5): rollouts keep the heading and the slider's pose,
-datasets store the pose, a learned policy is evaluated by coverage, and the GCS experts refuse clearly."""
+datasets store the pose, a learned policy is evaluated by coverage, and regret and collect (which need the
+GCS cost-to-go) refuse clearly."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import pytest
 from conftest import gcs_push
 
 import lerobot_gcs_push  # noqa: F401  (registers the envs)
-from lerobot_gcs_push.dataset import FEATURE_KEYS, EpisodeFrames, GenerateConfig, _Writer, generate
+from lerobot_gcs_push.dataset import FEATURE_KEYS, EpisodeFrames, GenerateConfig, _Writer
 from lerobot_gcs_push.evaluation import EvaluateConfig, Trajectory, read_runs
 from lerobot_gcs_push.registration import ENV_ID, SCENES, SE2_ENV_ID, TEE_ENV_ID
 from lerobot_gcs_push.rollout import rollout
@@ -83,20 +84,19 @@ def test_a_rotating_slider_episode_is_stored_with_its_pose_and_its_task(tmp_path
 
 
 @pytest.mark.parametrize("env_id", [SE2_ENV_ID, TEE_ENV_ID])
-def test_the_gcs_experts_and_regret_refuse_a_rotating_env_by_name(tmp_path, env_id):
-    needle = f"no GCS expert for {env_id} yet"
-    for policy in ("gcs-open-loop", "gcs-closed-loop"):
-        with pytest.raises(ValueError, match=needle):
-            EvaluateConfig(env_id=env_id, policies=[policy])
+def test_regret_refuses_a_rotating_env_by_name_and_the_experts_do_not(env_id):
+    needle = f"no GCS cost-to-go for {env_id} yet"
     with pytest.raises(ValueError, match=needle + r".*regret"):
         EvaluateConfig(env_id=env_id, policies=[str(POLICY)], regret=True)
-    # Regret defaults on where the env has an expert, off where it has none.
+    # Regret defaults on where the env has a cost-to-go, off where it has none.
     assert EvaluateConfig(env_id=env_id, policies=[str(POLICY)]).regret is False
     assert EvaluateConfig(policies=[str(POLICY)]).regret is True
-    root = tmp_path / "ds"
-    with pytest.raises(ValueError, match=needle):
-        generate(GenerateConfig(env_id=env_id, episodes=1, root=str(root), progress=False))
-    assert not root.exists() and not root.with_name("ds.work").exists()
+    for policy in ("gcs-open-loop", "gcs-closed-loop"):  # the experts plan through contact (test_contact_expert.py)
+        assert EvaluateConfig(env_id=env_id, policies=[policy]).regret is False
+    # Demonstrations of a rotating slider default to the closed-loop expert and plan with the relaxation only.
+    assert GenerateConfig(env_id=env_id).expert == "closed-loop" and GenerateConfig().expert == "open-loop"
+    with pytest.raises(ValueError, match="relaxation only"):
+        GenerateConfig(env_id=env_id, method="micp")
 
 
 def test_an_unknown_env_id_is_refused_with_the_choices(tmp_path):
@@ -104,11 +104,12 @@ def test_an_unknown_env_id_is_refused_with_the_choices(tmp_path):
         with pytest.raises(ValueError, match=f"unknown env_id 'GcsPushTee-v0'.*{ENV_ID}.*{TEE_ENV_ID}"):
             make(env_id="GcsPushTee-v0")
     res = subprocess.run(
-        gcs_push("evaluate", f"--env_id={SE2_ENV_ID}", "--policies=[gcs-closed-loop]", f"--output_dir={tmp_path}"),
+        gcs_push("evaluate", f"--env_id={SE2_ENV_ID}", "--policies=[gcs-closed-loop]", "--regret=true",
+                 f"--output_dir={tmp_path}"),
         capture_output=True,
         text=True,
-    )
-    assert res.returncode == 2 and f"no GCS expert for {SE2_ENV_ID} yet" in res.stderr
+    )  # fmt: skip
+    assert res.returncode == 2 and f"no GCS cost-to-go for {SE2_ENV_ID} yet" in res.stderr
     assert "Traceback" not in res.stderr and not (tmp_path / "runs.jsonl").exists()
 
 
@@ -197,12 +198,12 @@ def test_fig7_draws_the_slider_outline_along_the_path_and_at_the_goal(tee_eval, 
     plt.close(fig)
 
 
-def test_collect_takes_the_env_from_the_rollouts_and_refuses_one_without_an_expert(tee_eval, tmp_path):
+def test_collect_takes_the_env_from_the_rollouts_and_refuses_one_without_a_cost_to_go(tee_eval, tmp_path):
     from lerobot_gcs_push.active import CollectConfig, collect, rollouts_env_id
 
     assert rollouts_env_id([str(tee_eval)]) == TEE_ENV_ID
     root = tmp_path / "ds"
-    with pytest.raises(ValueError, match=f"no GCS expert for {TEE_ENV_ID} yet"):
+    with pytest.raises(ValueError, match=f"no GCS cost-to-go for {TEE_ENV_ID} yet"):
         collect(CollectConfig(rollouts=[str(tee_eval)], root=str(root)))
     assert not root.exists()
     box = tmp_path / "box_rollouts"  # a folder from before the env was recorded: the box's

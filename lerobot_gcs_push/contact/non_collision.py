@@ -29,6 +29,25 @@ class Region:
     def contains(self, q, tol: float = 1e-9) -> bool:
         return bool(np.all(self.a @ np.asarray(q, float) <= self.b + tol))
 
+    def project(self, q, margin: float = 0.0) -> np.ndarray:
+        """The nearest point to `q` at least `margin` inside the piece. In the plane it is `q` itself, its
+        projection onto one (shifted) boundary line, or a vertex where two meet: the nearest of those."""
+        q = np.asarray(q, float)
+        norms = np.linalg.norm(self.a, axis=1)
+        b = self.b - margin * norms
+        if np.all(self.a @ q <= b + 1e-12):
+            return q.copy()
+        candidates = [q - (a @ q - bi) / n**2 * a for a, bi, n in zip(self.a, b, norms)]
+        for i in range(len(b)):
+            for j in range(i + 1, len(b)):
+                m = self.a[[i, j]]
+                if abs(np.linalg.det(m)) > 1e-12:
+                    candidates.append(np.linalg.solve(m, b[[i, j]]))
+        inside = [c for c in candidates if np.all(self.a @ c <= b + 1e-9)]
+        if not inside:
+            raise ValueError(f"the piece has no point {margin} m inside it")
+        return min(inside, key=lambda c: float(np.linalg.norm(c - q)))
+
 
 def free_regions(model: PushModel) -> list[Region]:
     out = []

@@ -4,7 +4,6 @@ the pushes' contact points and displacements, the cost and the relaxation's cert
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import StrEnum
 
 import numpy as np
 
@@ -12,27 +11,7 @@ from lerobot_gcs_push.contact.face_contact import finger_body
 from lerobot_gcs_push.contact.graph import ContactGraph
 from lerobot_gcs_push.contact.model import PushModel
 from lerobot_gcs_push.contact.rounding import Restriction
-
-
-# The kinds and speeds mirror lerobot_gcs_push.planner.plan's, defined here so that this package does not
-# import the planner package (under edit by others; a rotating plan has no approach or retreat segments).
-class SegmentKind(StrEnum):
-    FREE = "free"
-    PUSH = "push"
-
-
-FREE, PUSH = SegmentKind
-
-
-@dataclass(frozen=True)
-class Speeds:
-    """Maximum finger speed per segment kind (m/s), as the box planner's defaults."""
-
-    free: float = 1.0
-    push: float = 0.4
-
-    def of(self, kind: SegmentKind) -> float:
-        return getattr(self, str(kind))
+from lerobot_gcs_push.planner.plan import FREE, PUSH, Schedule, SegmentKind, Speeds
 
 
 @dataclass
@@ -72,13 +51,46 @@ class ContactPlan:
     def duration(self, speeds: Speeds | None = None) -> float:
         return float(self._times(speeds or Speeds())[-1])
 
-    def commands(self, fps: float, speeds: Speeds | None = None) -> np.ndarray:
-        """Finger position commands at t = 1/fps, 2/fps, ... (pushes at the push speed; no lead or dwell
-        yet: the rotating sim's tracking lag is not calibrated)."""
-        t_knots = self._times(speeds or Speeds())
+    def schedule(self, fps: float, speeds: Speeds | None = None, lag_s: float = 0.0) -> Schedule:
+        """Commands at t = 1/fps, 2/fps, ..., the segment kind at each, and where the plan has the slider
+        then (x, y, heading: the closed-loop expert's reference). `lag_s` (Scene.push_lag_s) turns on the
+        box planner's push lead: the finger trails its command by v * lag_s while pushing, so commands run
+        that far ahead along the push, but never past the push's end (a short correction near the goal
+        would overshoot by the whole lead). No dwell: the rotating slider's plans chain pushes (its
+        closed-loop expert replans where a push ended elsewhere)."""
+        speeds = speeds or Speeds()
+        t_knots = self._times(speeds)
         n = max(1, int(np.ceil(t_knots[-1] * fps - 1e-9)))
         t = np.minimum(np.arange(1, n + 1) / fps, t_knots[-1])
-        return np.stack([np.interp(t, t_knots, self.finger_path[:, i]) for i in range(2)], axis=1)
+        cmds = np.stack([np.interp(t, t_knots, self.finger_path[:, i]) for i in range(2)], axis=1)
+        poses = np.stack([np.interp(t, t_knots, self.slider_poses[:, i]) for i in range(3)], axis=1)
+        if not self.segment_kinds:
+            return Schedule(cmds, [FREE] * n, poses)
+        seg = np.clip(np.searchsorted(t_knots, t - 1e-12) - 1, 0, len(self.segment_kinds) - 1)
+        lead = speeds.push_lead * lag_s * speeds.push
+        if lead > 0:
+            for a, b in self._push_runs():
+                path = self.finger_path[a : b + 1]
+                arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+                on = (t > t_knots[a] + 1e-12) & (t < t_knots[b] - 1e-9)  # as the segment kinds: (start, end]
+                ahead = np.minimum(np.interp(t[on], t_knots[a : b + 1], arc) + lead, arc[-1])
+                cmds[on] = np.stack([np.interp(ahead, arc, path[:, i]) for i in range(2)], axis=1)
+        return Schedule(cmds, [self.segment_kinds[i] for i in seg], poses)
+
+    def _push_runs(self) -> list[tuple[int, int]]:
+        """(first knot, last knot) of each run of consecutive push segments."""
+        runs, start = [], None
+        for i, kind in enumerate([*self.segment_kinds, FREE]):
+            if kind == PUSH and start is None:
+                start = i
+            elif kind != PUSH and start is not None:
+                runs.append((start, i))
+                start = None
+        return runs
+
+    def commands(self, fps: float, speeds: Speeds | None = None) -> np.ndarray:
+        """Finger position commands at t = 1/fps, 2/fps, ... along the plan (no push lead)."""
+        return self.schedule(fps, speeds).commands
 
     def to_json(self) -> dict:
         return {

@@ -59,7 +59,7 @@ class Schedule:
 
     commands: np.ndarray  # (N, 2)
     kinds: list[SegmentKind]  # (N,)
-    box: np.ndarray  # (N, 2): planned box position (exact when the kind is not a push)
+    box: np.ndarray  # (N, 2): planned box position (exact when the kind is not a push); a rotating slider's (N, 3) pose
 
     def __len__(self) -> int:
         return len(self.commands)

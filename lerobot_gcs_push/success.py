@@ -1,0 +1,39 @@
+"""How an env's runs are scored, named for the tables and figures: its success rule and a looser measure
+beside it. Apart from evaluation.py so that the figures read it without importing the evaluation."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from lerobot_gcs_push.registration import SCENES
+
+
+@dataclass(frozen=True)
+class SuccessMeasures:
+    """How an env's runs are scored: the success rule (the env's `is_success`) and a second, looser
+    measure beside it, with their names in the tables."""
+
+    title: str  # Table I's title: the success rule
+    strict: str  # the success column's header
+    loose_key: str  # the record key of the second measure
+    loose: str  # its column's header
+    per_ic: str  # Table II's title
+
+
+def success_measures(cfg) -> SuccessMeasures:
+    """The box: the paper's radius and a looser one. A rotating slider: coverage of the goal outline,
+    and beside it the mean final coverage (how close the failures came)."""
+    scene = SCENES[cfg.env_id]
+    if scene.rotates:
+        rule = f"coverage >= {scene.success_coverage:g}"
+        return SuccessMeasures(
+            f"success ({rule})", "success", "coverage", "mean coverage", f"success ({rule}) / mean coverage"
+        )
+    thr1, thr2 = cfg.success_thresholds
+    return SuccessMeasures(
+        f"success (box within {thr1:g} m)",
+        f"success {thr1:g} m",
+        f"success_{thr2:g}",
+        f"success {thr2:g} m",
+        f"success per initial condition ({thr1:g} m / {thr2:g} m)",
+    )

@@ -1,0 +1,202 @@
+"""The planner through contact as the rotating envs' expert: measured states made plannable, the closed-loop
+expert's episodes in the sim, and its demonstrations, whose actions replayed in a fresh env succeed."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from conftest import gcs_push
+
+import lerobot_gcs_push  # noqa: F401  (registers the envs)
+from lerobot_gcs_push.contact import ContactPlanner
+from lerobot_gcs_push.contact.expert import plannable
+from lerobot_gcs_push.contact.non_collision import Region, free_regions
+from lerobot_gcs_push.evaluation import read_runs
+from lerobot_gcs_push.registration import SCENES, SE2_ENV_ID, TEE_ENV_ID
+
+SE2 = SCENES[SE2_ENV_ID]
+
+
+def test_a_point_projects_to_the_nearest_point_of_a_piece_found_by_brute_force():
+    """Against a dense grid of the T's pieces (an oracle that knows nothing of active sets)."""
+    from lerobot_gcs_push.contact.model import PushModel
+
+    rng = np.random.default_rng(0)
+    regions = free_regions(PushModel.from_scene(SCENES[TEE_ENV_ID]))
+    g = np.linspace(-3.0, 3.0, 601)
+    grid = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)
+    for region in regions[:4]:
+        for margin in (0.0, 0.05):
+            ok = np.all(grid @ region.a.T <= region.b - margin * np.linalg.norm(region.a, axis=1) + 1e-12, axis=1)
+            inside = grid[ok]
+            for q in rng.uniform(-2.5, 2.5, size=(15, 2)):
+                p = region.project(q, margin)
+                assert np.all(region.a @ p <= region.b - margin * np.linalg.norm(region.a, axis=1) + 1e-9)
+                best = np.min(np.linalg.norm(inside - q, axis=1))
+                assert np.linalg.norm(p - q) <= best + 1e-9  # never farther than the grid's nearest point
+                assert np.linalg.norm(p - q) >= best - 0.01 * np.sqrt(2)  # and within the grid's spacing of it
+
+
+def test_region_project_of_an_empty_shifted_piece_is_refused():
+    with pytest.raises(ValueError, match="no point"):
+        Region(np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([0.1, 0.1])).project((0.5, 0.0), margin=0.2)
+
+
+@pytest.fixture(scope="module")
+def planner():
+    return ContactPlanner(SE2)
+
+
+@pytest.mark.parametrize(
+    "local",
+    [
+        (0.795, 0.10),  # 5 mm into the +x face: the finger pushing, as measured mid-push
+        (0.78, -0.2),  # 2 cm into it (contact compliance)
+        (0.69, 0.69),  # off the corner: clear of the box, yet in no piece (they are half-planes pushed out by r)
+    ],
+)
+def test_a_measured_finger_is_moved_into_a_free_piece_clear_of_the_slider(planner, local):
+    pose = np.array([0.5, -0.4, 0.7])
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    finger = pose[:2] + np.array([c * local[0] - s * local[1], s * local[0] + c * local[1]])
+    with pytest.raises(ValueError, match="free-space pieces"):
+        planner.query(pose, finger)
+    pose2, finger2 = plannable(planner, pose, finger)
+    np.testing.assert_array_equal(pose2, pose)
+    planner.query(pose2, finger2)  # accepted now
+    assert SE2.shape.signed_distance(pose, finger2) >= SE2.finger_radius  # clear of the slider (shapes.py)
+    assert np.linalg.norm(finger2 - finger) < 0.15  # the nearest such place, not anywhere
+
+
+def test_a_plan_depends_on_its_query_not_on_the_plans_before(planner):
+    """Closed-loop experts replan many times an episode: rounding must not carry a sampler state over."""
+    a, b = ((1.5, -1.0, 0.4), (-2.0, 1.0)), ((-1.0, 2.0, -0.3), (2.0, 2.0))
+    first = planner.plan(*a)
+    planner.plan(*b)
+    again = planner.plan(*a)
+    assert again.cost == first.cost and again.modes == first.modes
+    np.testing.assert_array_equal(again.finger_path, first.finger_path)
+
+
+def test_a_slider_knocked_past_the_planners_reach_is_brought_back(planner):
+    reach = planner.model.reach
+    pose, finger = plannable(planner, (reach + 0.3, 0.0, 0.2), (reach + 0.3, 2.5))
+    assert pose[0] == pytest.approx(reach) and np.allclose(finger, (reach + 0.3, 2.5))
+
+
+@pytest.fixture(scope="module")
+def expert_eval(tmp_path_factory):
+    """Both GCS experts on the rotating box from the command line, 3 random starts, no regret."""
+    out = tmp_path_factory.mktemp("se2") / "eval"
+    args = [f"--env_id={SE2_ENV_ID}", "--policies=[gcs-closed-loop,gcs-open-loop]", "--num_initial_conditions=3"]
+    cmd = gcs_push("evaluate", *args, "--runs=1", "--timeout_s=60", "--videos=0", "--workers=2", f"--output_dir={out}")
+    subprocess.run(cmd, check=True, capture_output=True)
+    return out
+
+
+def test_the_closed_loop_expert_reaches_coverage_in_the_sim(expert_eval):
+    recs = read_runs(expert_eval / "runs.jsonl")
+    closed = [r for r in recs if r["policy"] == "gcs-closed-loop"]
+    assert len(closed) == 3
+    for rec in closed:
+        traj = np.load(expert_eval / rec["trajectory"])
+        final = traj["slider_pose"][-1]
+        # Coverage recomputed from the simulator's final pose by the shape's own clipping, not the env's flag.
+        assert SE2.coverage(final) >= SE2.success_coverage and rec["success"]
+        assert rec["plan_time_s"] > 0 and rec["sim_time_s"] < 60
+    settings = json.loads((expert_eval / "settings.json").read_text())
+    assert settings["regret"] is False
+
+
+def test_open_loop_plans_stray_and_the_record_says_so(expert_eval):
+    """Pushing from one point is unstable: open-loop the slider strays from the plan (measured: 0 of 10
+    random starts reach coverage). The records stay honest: success is coverage of the final pose."""
+    for rec in read_runs(expert_eval / "runs.jsonl"):
+        final = np.load(expert_eval / rec["trajectory"])["slider_pose"][-1]
+        assert rec["success"] == (SE2.coverage(final) >= SE2.success_coverage)
+
+
+def test_demonstrations_of_the_rotating_box_replay_in_the_sim_and_end_at_the_goal(tmp_path):
+    """Two closed-loop demonstrations. Their recorded actions, replayed in a fresh env from the recorded
+    start, retrace the recorded poses (the env is deterministic without disturbances; pushing is unstable,
+    so the float32 rounding of the stored actions grows, measured 3 mm after 160 steps: compared over the
+    first 100), and the last recorded pose, one step before success, covers most of the goal by the
+    shape's own clipping."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from lerobot_gcs_push.dataset import GenerateConfig, generate, read_episode_metadata
+
+    root = tmp_path / "ds"
+    cfg = GenerateConfig(env_id=SE2_ENV_ID, episodes=2, repo_id="local/se2_demos", root=str(root), workers=1,
+                         progress=False)  # fmt: skip
+    assert cfg.expert == "closed-loop"
+    report = generate(cfg)
+    ds = LeRobotDataset("local/se2_demos", root=root, video_backend="pyav")
+    assert ds.meta.total_episodes == 2
+    meta = read_episode_metadata(report.root)
+    env = gym.make(SE2_ENV_ID).unwrapped
+    starts = np.asarray(ds.meta.episodes["dataset_from_index"])
+    ends = np.asarray(ds.meta.episodes["dataset_to_index"])
+    for (a, b), m in zip(zip(starts, ends), meta):
+        assert m["plan_lower_bound"] <= m["plan_cost"] + 1e-9 and m["success"]
+        assert m["coverage"] >= SE2.success_coverage
+        state = np.stack([ds.hf_dataset[int(i)]["observation.environment_state"] for i in range(a, b)])
+        actions = np.stack([ds.hf_dataset[int(i)]["action"] for i in range(a, b)])
+        np.testing.assert_allclose(state[0], [*m["box_initial"], m["heading_initial"]], atol=1e-5)
+        env.reset(options={"box": m["box_initial"], "finger": m["finger_initial"], "heading": m["heading_initial"]})
+        for k, act in enumerate(actions[: min(100, len(actions) - 1)]):
+            _, _, terminated, _, info = env.step(np.asarray(act, float))
+            assert np.abs(info["slider_pose"] - state[k + 1]).max() < 2e-3
+        assert SE2.coverage(state[-1]) > 0.9
+
+
+def test_push_commands_lead_the_plan_by_the_fingers_lag_but_never_past_the_pushs_end():
+    """A hand-made plan: 1 m free along -y, then a 0.2 m push along +x in two knots. At 0.4 m/s the
+    finger trails by 0.4 * lag_s; commands run that far ahead, capped at the push's end point."""
+    from lerobot_gcs_push.contact.plan import ContactPlan
+    from lerobot_gcs_push.planner.plan import FREE, PUSH, Speeds
+
+    fingers = np.array([[0.0, 1.0], [0.0, 0.0], [0.1, 0.0], [0.2, 0.0]])
+    poses = np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.1, 0.0, 0.0], [1.2, 0.0, 0.0]])
+    plan = ContactPlan("test", 1.0, 0.5, 0.0, [], poses, fingers, [FREE, PUSH, PUSH], np.zeros(3))
+    speeds, lag_s = Speeds(), 0.5
+    lead = speeds.push_lead * lag_s * speeds.push  # 0.17 m
+    sched = plan.schedule(10, speeds, lag_s)
+    plain = plan.commands(10)
+    assert len(sched) == len(plain) == 15  # 1 s free + 0.5 s of push at 10 fps
+    np.testing.assert_allclose(sched.commands[:10], plain[:10])  # no lead outside the push
+    for k in range(10, 15):
+        on_plan = plain[k, 0]
+        assert sched.commands[k, 0] == pytest.approx(min(on_plan + lead, 0.2))
+        assert sched.commands[k, 1] == pytest.approx(0.0)
+    assert sched.kinds[:10] == [FREE] * 10 and sched.kinds[10:] == [PUSH] * 5
+    np.testing.assert_allclose(sched.box[-1], poses[-1])  # the reference pose: the plan's slider pose
+
+
+def test_a_start_with_no_plan_is_a_failed_run_not_a_crash(monkeypatch):
+    """The T's 11th sobol start (seed 0) has no plan here: no sampled path's restriction solves (it ended a
+    whole `generate` once). Stood in for by a planner that always fails, so that the test does not hang
+    on that start's numerics: the expert holds the finger where it is, and the episode runs out as a
+    failure that the generator and the evaluation record."""
+    from lerobot_gcs_push.contact import PlanningError
+    from lerobot_gcs_push.expert import ExpertConfig, make_expert
+    from lerobot_gcs_push.rollout import rollout
+
+    env = gym.make(SE2_ENV_ID, max_sim_time_s=1.0, image_size=(32, 32)).unwrapped
+    expert = make_expert(SE2, env.fps, ExpertConfig(mode="closed-loop"))
+
+    def no_plan(*args, **kwargs):
+        raise PlanningError("no sampled path's restriction solved")
+
+    monkeypatch.setattr(expert.planner, "plan", no_plan)
+    actions = []
+    start, finger = (1.5, -1.0, 0.4), (-2.0, 1.0)
+    res = rollout(env, expert, start[:2], finger, heading=start[2], on_step=lambda o, a, i: actions.append(a))
+    assert not res["success"] and res["plan"] is None and res["replans"] == 0
+    assert res["failed_replans"] == 1 + len(actions) // 5 - 1  # the first plan, then every 5 steps but the 0th
+    np.testing.assert_allclose(actions, np.tile(finger, (len(actions), 1)))  # held where it started
+    np.testing.assert_allclose(res["slider_pose_final"], start, atol=1e-6)  # nothing pushed it
