@@ -12,7 +12,15 @@ import numpy as np
 from gymnasium import spaces
 
 from lerobot_gcs_push.registration import ENV_ID, SE2_ENV_ID, TEE_ENV_ID, register_envs  # noqa: F401  (re-exported)
-from lerobot_gcs_push.scene import TASK, Disturbances, Scene, check_sampler, sample_initial_conditions, wrap_angle
+from lerobot_gcs_push.scene import (
+    HARD_SAMPLERS,
+    TASK,
+    Disturbances,
+    Scene,
+    check_sampler,
+    sample_initial_conditions,
+    wrap_angle,
+)
 from lerobot_gcs_push.shapes import SliderShape
 from lerobot_gcs_push.sim import PushSim
 
@@ -163,7 +171,7 @@ class GcsPushBoxEnv(gym.Env):
     random pushes; a rotating slider's also twist it, see `DisturbanceSchedule`), `image_size`,
     `success_threshold` (m), `success_coverage`, `goal` ((x, y), or (x, y, heading) for a rotating
     slider), `render_mode` ("rgb_array"), `scene` (default: the registered id's), `sampler` ("uniform",
-    "sobol", "hard": the box only), `render_size` (of `render()`).
+    "sobol", "hard" and "hard_v2": the box only), `render_size` (of `render()`).
 
     ## Version History
     - v0: the paper's box; the SE(2) box and the T added with rotation (issue 32).
@@ -196,8 +204,8 @@ class GcsPushBoxEnv(gym.Env):
         if not max_sim_time_s > 0:
             raise ValueError(f"max_sim_time_s must be positive, got {max_sim_time_s}")
         scene = scene if scene is not None else Scene()
-        if sampler == "hard" and scene.rotates:
-            raise ValueError("sampler 'hard' is for the box that cannot rotate: choose 'uniform' or 'sobol'")
+        if sampler in HARD_SAMPLERS and scene.rotates:
+            raise ValueError(f"sampler {sampler!r} is for the box that cannot rotate: choose 'uniform' or 'sobol'")
         if goal is not None:
             scene = scene.with_goal(goal)
         if success_threshold is not None:

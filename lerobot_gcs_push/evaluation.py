@@ -37,7 +37,7 @@ from lerobot_gcs_push.success import success_measures
 
 GCS_POLICIES = ("gcs-open-loop", "gcs-closed-loop")
 # The named evaluation sets: the paper's protocol set (uniform, seed 1000) and the hard set (seed 3000).
-NAMED_SET_SEEDS = {"uniform": 1000, "sobol": 1000, "hard": 3000}
+NAMED_SET_SEEDS = {"uniform": 1000, "sobol": 1000, "hard": 3000, "hard_v2": 3000}
 GCS_CHUNK_STEPS = 8  # the experts act every step; their regret is scored over the CPU preset's chunk length
 TIMING_FIELDS = ("run_time_s", "plan_time_s", "total_time_s")
 # The paper's Tables I and III, for the columns our variants reproduce.
@@ -105,7 +105,8 @@ class EvaluateConfig:
     # set of the sampler, 1000 (the paper's protocol set, uniform) or 3000 (the hard set).
     seed: int | None = None
     # The paper samples its evaluation set from the training distribution (uniform); `hard` is the
-    # named set of configurations a cloned policy gets wrong (scene.py), with its own seed.
+    # named set of configurations a cloned policy gets wrong (scene.py), with its own seed; `hard_v2` adds
+    # fingers far from the box (opposite corners among them).
     sampler: str = "uniform"
     # Regret of each executed chunk against the GCS cost-to-go (expert.chunk_regret); a chunk above
     # `large_regret_m` is a mistake (the GCS experts stay under 0.5 m per chunk, tracking lag included,

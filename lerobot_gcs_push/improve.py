@@ -121,6 +121,10 @@ class ImproveConfig:
     prior_states: list[str] = field(default_factory=list)
     # The task; a field so that another registered env (a rotating slider) runs the same loop.
     env_id: str = "GcsPushBox-v0"
+    # The sampler of the hard rollouts and validation sets. hard_v2 adds to the hard families the one the
+    # shipped policy's unseen sets found weak (box and finger in opposite corners, 1 success in 3) and
+    # fingers far from the box; runs begun before it existed used `hard`.
+    hard_sampler: str = "hard_v2"
     # The LeRobot preset that first training and fine-tunes start from.
     train_config: str = "configs/policy/diffusion_cpu.json"
     # Seeds: round k's rollouts use seed + 10k (hard) and + 1 (uniform), its validation sets + 5 and + 6,
@@ -145,8 +149,10 @@ class ImproveConfig:
         from lerobot_gcs_push.evaluation import check_device
         from lerobot_gcs_push.expert import check_cost_to_go
         from lerobot_gcs_push.rollout import check_env_id
+        from lerobot_gcs_push.scene import check_sampler
 
         check_cost_to_go(check_env_id(self.env_id), "rounds label the policy's states with it")
+        check_sampler(self.hard_sampler)
         # One spelling of each path: the policy's is also its label in every evaluation record.
         for name in ("policy", "state_dir", "work_dir", "train_config"):
             setattr(self, name, _canonical(getattr(self, name)))
@@ -216,6 +222,10 @@ def _flat(d: dict, prefix: str = "") -> dict:
     return out
 
 
+# What a state file made before a field existed ran with: resumed, it must keep it (or be refused).
+_BEFORE_FIELDS = {"hard_sampler": "hard"}
+
+
 def _settings(cfg: ImproveConfig) -> dict:
     skip = ("workers", "device", "stop", "stop_after", "state_dir", "work_dir", "save_freq")
     return {k: v for k, v in asdict(cfg).items() if k not in skip}
@@ -261,8 +271,11 @@ class Improver:
         self.state_dir, self.work = Path(cfg.state_dir), Path(cfg.work_dir)
         self.state = State.load(self.state_dir / STATE_FILE)
         # The settings that decide what a stage computes may not change under a resumed run. Compared leaf
-        # by leaf: a field that a later version added is absent from an older state file and passes.
+        # by leaf. A field that a later version added is read, for an older state file, as the value that
+        # file's run used (`_BEFORE_FIELDS`), so a resume that would change it is refused.
         wanted, stored = _flat(_settings(cfg)), _flat(self.state.settings)
+        if stored:
+            stored = _BEFORE_FIELDS | stored
         for k in ("policy", "train_config"):
             if k in stored:
                 stored[k] = _canonical(stored[k])
@@ -380,7 +393,8 @@ class Improver:
         from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate
 
         r = self.cfg.round
-        for (sampler, n, off), out in zip((("hard", r.hard, 0), ("uniform", r.uniform, 1)), self.rollouts(k)):
+        sets = ((self.cfg.hard_sampler, r.hard, 0), ("uniform", r.uniform, 1))
+        for (sampler, n, off), out in zip(sets, self.rollouts(k)):
             if n:
                 evaluate(
                     EvaluateConfig(
@@ -519,7 +533,8 @@ class Improver:
         from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate
 
         v = self.cfg.validation
-        for (sampler, n, off), out in zip((("hard", v.hard, 5), ("uniform", v.uniform, 6)), self.validation_dirs(k)):
+        sets = ((self.cfg.hard_sampler, v.hard, 5), ("uniform", v.uniform, 6))
+        for (sampler, n, off), out in zip(sets, self.validation_dirs(k)):
             evaluate(
                 EvaluateConfig(
                     policies=[self.cfg.policy, str(self.candidate(k))],

@@ -276,8 +276,13 @@ def _vector2(value, what: str) -> np.ndarray:
 
 
 TASK = "Push the red box onto the green goal."  # the language instruction stored with every frame
-SAMPLERS = ("sobol", "uniform", "hard")
+SAMPLERS = ("sobol", "uniform", "hard", "hard_v2")
 HARD_KINDS = ("goal_side", "corner", "tiny_push", "edge")
+# `hard` stays as it was (its seeded sets are the test and validation sets on record); `hard_v2` adds the
+# family the unseen sets of session 20 found (box and finger in opposite corners: 1 success in 3) and
+# fingers far from the box in general, and draws its six families in turn.
+HARD_V2_KINDS = (*HARD_KINDS, "opposite_corners", "far_finger")
+HARD_SAMPLERS = {"hard": HARD_KINDS, "hard_v2": HARD_V2_KINDS}
 
 
 def check_sampler(sampler: str) -> str:
@@ -313,7 +318,8 @@ def sample_initial_conditions(
 
     `sobol` (default) is a scrambled Sobol sequence over (box x, box y, finger x, finger y): it covers the
     corners the paper's uniform samples left sparse (its Figs. 4 and 6). `uniform` reproduces the paper.
-    `hard` draws, in turn, the configurations a behaviour-cloned policy gets wrong (see `_hard_point`).
+    `hard` draws, in turn, the configurations a behaviour-cloned policy gets wrong (see `_hard_point`);
+    `hard_v2` the same families and two with the finger far from the box.
     `collides(box, finger)` defaults to the exact sphere-box distance; the env passes Drake's query.
     The i-th condition depends only on the seed and i, so a prefix of a longer list is the shorter list.
 
@@ -327,14 +333,15 @@ def sample_initial_conditions(
     if collides is None:
         collides = lambda b, f, h=0.0: scene.finger_box_gap(b, f, h) < 0  # noqa: E731
     out: list[InitialCondition] = []
-    if sampler == "hard" and scene.rotates:
+    if sampler in HARD_SAMPLERS and scene.rotates:
         raise ValueError(
-            "the 'hard' sampler's families are for the box that cannot rotate: choose 'sobol' or 'uniform'"
+            f"the {sampler!r} sampler's families are for the box that cannot rotate: choose 'sobol' or 'uniform'"
         )
-    if sampler == "hard":
+    if sampler in HARD_SAMPLERS:
+        kinds = HARD_SAMPLERS[sampler]
         for i in range(n):
             rng = np.random.default_rng([seed, i])
-            kind = HARD_KINDS[i % len(HARD_KINDS)]
+            kind = kinds[i % len(kinds)]
             while True:  # redraws come from the same stream, so the i-th condition still depends on (seed, i)
                 box, finger = _hard_point(scene, kind, rng)
                 if not collides(box, finger):
@@ -358,6 +365,10 @@ def sample_initial_conditions(
     return out
 
 
+# The far_finger family's least finger-to-box distance: half the workspace's diagonal (4.5 m of box region).
+FAR_FINGER_M = 6.0
+
+
 def _hard_point(scene: Scene, kind: str, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """One (box, finger) of a family that uniform sampling rarely draws but a policy must handle:
 
@@ -366,6 +377,8 @@ def _hard_point(scene: Scene, kind: str, rng: np.random.Generator) -> tuple[np.n
     - corner: the box near a corner, the finger just off one of its two goal-facing faces.
     - tiny_push: the box a few decimetres from the goal, the finger far away.
     - edge: the box along an edge of its region, the finger anywhere.
+    - opposite_corners: the box near a corner, the finger near the diagonally opposite one (hard_v2).
+    - far_finger: the box anywhere, the finger at least `FAR_FINGER_M` from it (hard_v2).
     """
     g, lim = scene.goal_array, scene.box_limit
     near = scene.contact_distance + 0.05  # finger centre just clear of a face
@@ -396,8 +409,20 @@ def _hard_point(scene: Scene, kind: str, rng: np.random.Generator) -> tuple[np.n
         box = rng.uniform(-lim, lim, size=2)
         box[axis] = rng.choice([-1.0, 1.0]) * rng.uniform(lim - 1.0, lim)
         finger = rng.uniform(-scene.finger_init_half_width, scene.finger_init_half_width, size=2)
+    elif kind == "opposite_corners":
+        signs = rng.choice([-1.0, 1.0], size=2)
+        box = signs * rng.uniform(lim - 1.5, lim, size=2)
+        fl = scene.finger_init_half_width
+        finger = -signs * rng.uniform(fl - 1.5, fl, size=2)
+    elif kind == "far_finger":
+        box = rng.uniform(-lim, lim, size=2)
+        fl = scene.finger_init_half_width
+        while True:  # rejection from the same stream: a box near the centre has no finger this far in some draws
+            finger = rng.uniform(-fl, fl, size=2)
+            if np.linalg.norm(finger - box) >= FAR_FINGER_M:
+                break
     else:
-        raise ValueError(f"unknown hard kind {kind!r}: choose one of {HARD_KINDS}")
+        raise ValueError(f"unknown hard kind {kind!r}: choose one of {HARD_V2_KINDS}")
     return np.clip(box, -lim, lim), np.clip(finger, -scene.finger_limit, scene.finger_limit)
 
 

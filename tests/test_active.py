@@ -10,7 +10,7 @@ import pytest
 
 from lerobot_gcs_push.active import CollectConfig, branch_states, collect
 from lerobot_gcs_push.expert import chunk_regret, plannable
-from lerobot_gcs_push.scene import HARD_KINDS, Scene, sample_initial_conditions
+from lerobot_gcs_push.scene import FAR_FINGER_M, HARD_KINDS, HARD_V2_KINDS, Scene, sample_initial_conditions
 
 SCENE = Scene()
 
@@ -41,6 +41,34 @@ def test_hard_sampler_families_have_their_geometry():
             assert np.max(np.abs(finger)) >= 3.5
         elif ic.kind == "edge":
             assert np.max(np.abs(box)) >= SCENE.box_limit - 1.0 - 1e-9
+
+
+def test_hard_sampler_still_draws_the_recorded_hard_test_set():
+    # hard_v2 came beside `hard` so that the seeded sets on record stay what they were.
+    rows = json.loads(open("results/active_round11_hard.json").read())["initial_conditions"]["rows"]
+    ics = sample_initial_conditions(SCENE, len(rows), seed=3000, sampler="hard")
+    assert len(rows) == 20
+    for ic, (bx, by, fx, fy, kind, *_) in zip(ics, rows):  # the record keeps millimetres
+        np.testing.assert_allclose([*ic.box, *ic.finger], [bx, by, fx, fy], atol=5.1e-4)
+        assert ic.kind == kind
+
+
+def test_hard_v2_adds_the_far_finger_families():
+    ics = sample_initial_conditions(SCENE, 60, seed=11, sampler="hard_v2")
+    assert sample_initial_conditions(SCENE, 7, seed=11, sampler="hard_v2") == ics[:7]
+    assert [ic.kind for ic in ics[:12]] == list(HARD_V2_KINDS) * 2
+    lim, fl = SCENE.box_limit, SCENE.finger_init_half_width
+    for ic in ics:
+        SCENE.validate_state(ic.box, ic.finger)
+        box, finger = np.array(ic.box), np.array(ic.finger)
+        if ic.kind == "opposite_corners":  # each coordinate on the other side, both near their corners
+            assert np.all(np.sign(box) == -np.sign(finger))
+            assert np.all(np.abs(box) >= lim - 1.5 - 1e-9) and np.all(np.abs(finger) >= fl - 1.5 - 1e-9)
+            assert np.linalg.norm(box - finger) >= np.hypot(lim + fl - 3.0, lim + fl - 3.0) - 1e-9
+        elif ic.kind == "far_finger":
+            assert np.linalg.norm(box - finger) >= FAR_FINGER_M - 1e-9
+    with pytest.raises(ValueError, match="hard_v2"):
+        sample_initial_conditions(dataclasses.replace(SCENE, rotates=True), 1, sampler="hard_v2")
 
 
 def test_plannable_clears_the_box_by_the_clearance_and_leaves_free_states_alone():

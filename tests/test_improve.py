@@ -117,6 +117,24 @@ def test_a_state_file_resumes_from_a_clone_elsewhere(tmp_path, monkeypatch):
         Improver(ImproveConfig(policy="other", state_dir="state", **cfg))
 
 
+def test_a_run_begun_before_hard_v2_keeps_its_hard_sampler(tmp_path, monkeypatch):
+    from lerobot_gcs_push.improve import ImproveConfig, Improver
+
+    monkeypatch.chdir(ROOT)
+    same = {"policy": str(tmp_path / "pol"), "state_dir": str(tmp_path / "state"), "work_dir": str(tmp_path / "w")}
+    Improver(ImproveConfig(**same)).state.save()
+    # A state file as written before the field existed (the from-nothing run's, which used `hard`).
+    path = tmp_path / "state" / "state.json"
+    data = json.loads(path.read_text())
+    assert data["settings"].pop("hard_sampler") == "hard_v2"
+    path.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match="hard_sampler"):
+        Improver(ImproveConfig(**same))  # today's default would change what the old run's stages compute
+    assert Improver(ImproveConfig(hard_sampler="hard", **same)).cfg.hard_sampler == "hard"
+    with pytest.raises(ValueError, match="unknown sampler"):
+        ImproveConfig(hard_sampler="hardest")
+
+
 def test_improve_from_nothing_resumes_after_kill_9_inside_each_stage(tmp_path):
     """Base demonstrations, first training, and round 1's rollouts, collect, fine-tune and validation,
     each SIGKILLed mid-stage and resumed; after the fine-tune's kill the work folder and the datasets are
