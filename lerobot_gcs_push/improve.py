@@ -9,11 +9,11 @@ old one. From nothing, base demonstrations and a first training come before roun
 budget of rounds or hours.
 
 Every stage resumes after `kill -9`. What another machine needs to resume is small: the policy folder and
-`state_dir` (the state file: stages done, their wall times, each round's scores and decision; each round's
-branch-state list; the candidate awaiting its decision; the newest checkpoint of an unfinished training
-in fp16). Commit both and re-run the same command: datasets are rebuilt from the lists (the same expert,
-states and seeds give the same episodes) and rollouts or validation runs a later stage needs are made
-again (seeded, so the same).
+`state_dir` (the state file: stages done, their wall times, each round's scores and decision, drawn as
+`curve.png` after every round's rollouts; each round's branch-state list; the candidate awaiting its
+decision; the newest checkpoint of an unfinished training in fp16). Commit both and re-run the same
+command: datasets are rebuilt from the lists (the same expert, states and seeds give the same episodes)
+and rollouts or validation runs a later stage needs are made again (seeded, so the same).
 
 Each default is a lesson of the eleven hand-run rounds (experiments/active_data/README.md), named beside it.
 """
@@ -34,6 +34,7 @@ from pathlib import Path
 
 from lerobot_gcs_push.checkpoints import export_policy, is_pretrained_dir
 from lerobot_gcs_push.files import atomic_path
+from lerobot_gcs_push.improve_curve import CURVE_FILE, plot_curve
 
 STATE_FILE = "state.json"
 _SAVE_LOCK = threading.Lock()
@@ -611,6 +612,7 @@ class Improver:
                 why = f"budget of {cfg.stop.max_hours:g} h spent"
                 break
             self.stage(f"r{k}.rollouts", functools.partial(self.run_rollouts, k))
+            plot_curve({"stages": self.state.stages}, self.state_dir / CURVE_FILE, cfg.stop)
             if self.targets_met(k):
                 self.record_round(k, shipped=False, decision=None, targets_met=True)
                 why = f"targets met on round {k}'s rollouts"

@@ -187,6 +187,7 @@ def test_improve_from_nothing_resumes_after_kill_9_inside_each_stage(tmp_path):
     ]
     assert list(saved["stages"]) == names and all(saved["stages"][n]["done"] for n in names)
     assert all(saved["stages"][n]["wall_s"] > 0 for n in names)
+    assert (state / "curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"  # round 1's rollouts drawn
     # Rebuilt from the kept list and the base's seed: the same episode counts; the merge holds both.
     assert _info(base)["total_episodes"] == 12 and _info(r1)["total_episodes"] == labelled
     assert _info(home / "local" / "t_improve_r1_merged")["total_episodes"] == 12 + labelled
