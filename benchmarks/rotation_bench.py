@@ -198,6 +198,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--edge-copies", action="store_true", help="one contact copy per entering edge (last layer)")
     ap.add_argument("--max-step-rotation", type=float, default=0.2, help="rad per knot step")
     ap.add_argument("--no-rlt", action="store_true")
+    ap.add_argument("--no-knot-windows", action="store_true", help="without each knot's reachable-heading cut")
     ap.add_argument("--no-episodes", action="store_true", help="plans only, no episodes in the env")
     args = ap.parse_args(argv)
     stats = run(
@@ -212,6 +213,7 @@ def main(argv=None) -> dict:
         window_margin=args.window_margin,
         edge_copies=args.edge_copies,
         max_step_rotation=args.max_step_rotation,
+        knot_windows=not args.no_knot_windows,
     )
     for k, v in stats.items():
         print(f"{k:32s} {v:.4g}")

@@ -149,6 +149,8 @@ def lift(relaxation, graph, plan) -> float:
             z = [1, push["lam"], push["c"][k], push["s"][k], push["fn"][k], push["ft"][k]]
             z = np.array(z + [push["c"][k + 1], push["s"][k + 1]])
             m.value = np.outer(z, z)
+        for row, moments in rc.cut_rows:
+            row.value = moments.value
         cost += float(rc.cost.value)
         pose = np.array([push["x"][-1], push["y"][-1], push["c"][-1], push["s"][-1]])
     pt[path["contacts"][-1]] = 1
@@ -182,3 +184,29 @@ def test_near_goal_start_is_rescued_by_the_fallback(planner):
     assert plan.lower_bound <= plan.cost
     end = integrate(pose, plan.pushes)
     assert np.linalg.norm(end[:2] - plan.slider_final[:2]) < 0.03
+
+
+@pytest.mark.parametrize("steps, max_step", [(10, 0.2), (16, 0.2)])
+def test_knot_windows_hold_every_heading_sequence_a_plan_can_take(steps, max_step):
+    """Brute force against `reachable_windows`: heading sequences drawn at random, each step turning at
+    most max_step and the last knot on the goal (any of its 2 pi copies in reach, so the T's 16 steps also
+    go the long way round), never leave a knot's window, so the cuts restrict no plan."""
+    from lerobot_gcs_push.contact.model import reachable_windows
+
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        start = rng.uniform(-math.pi, math.pi)
+        goal = start + rng.uniform(-1, 1) * min(math.pi, steps * max_step)
+        windows = reachable_windows(start, goal, steps, max_step)
+        targets = [g for g in goal + 2 * math.pi * np.arange(-2, 3) if abs(g - start) <= steps * max_step]
+        assert windows[0] is not None and windows[0].half_width < 1e-5  # knot 0 is the start
+        for _ in range(5):
+            target, theta = rng.choice(targets), [start]
+            for j in range(1, steps + 1):
+                left = (steps - j) * max_step  # still to go from knot j: stay where the target is in reach
+                lo, hi = max(theta[-1] - max_step, target - left), min(theta[-1] + max_step, target + left)
+                lo, hi = min(lo, hi), max(lo, hi)  # equal but for rounding when the target pins the knot
+                theta.append(rng.uniform(lo, hi) if rng.random() < 0.6 else rng.choice([lo, hi]))
+            for th, w in zip(theta, windows):
+                if w is not None:
+                    assert w.u @ [math.cos(th), math.sin(th)] >= w.cos_half - 1e-9

@@ -140,35 +140,45 @@ def finger_body(face: Face, model: PushModel, lam):
 
 
 class ArcParameters:
-    """The heading window's chord cut u . (c, s) >= ch as cvxpy Parameters; products of parameters are
-    parameters of their own so that the problem stays DPP (compiled once)."""
+    """A chord cut u . (c, s) >= ch on one knot's heading, as cvxpy Parameters (set per query). Scalar
+    parameters: indexing a vector parameter made cvxpy's compile of the T's graph several times slower."""
 
     def __init__(self):
-        self.u = cp.Parameter(2)
-        self.ch = cp.Parameter()
-        self.uu = cp.Parameter((2, 2))
-        self.uch = cp.Parameter(2)
-        self.chch = cp.Parameter()
+        self.ux, self.uy, self.ch = cp.Parameter(), cp.Parameter(), cp.Parameter()
 
     def set(self, window) -> None:
-        u, ch = window.u, window.cos_half
-        self.u.value, self.ch.value = u, ch
-        self.uu.value, self.uch.value, self.chch.value = np.outer(u, u), u * ch, ch * ch
+        """A HeadingWindow, or None for no cut (u . (c, s) >= -1 holds on the whole unit disk)."""
+        u, ch = (np.array([1.0, 0.0]), -1.0) if window is None else (window.u, window.cos_half)
+        self.ux.value, self.uy.value, self.ch.value = float(u[0]), float(u[1]), float(ch)
 
     def row(self, m, c: int, s: int):
         """The moments of (u . (c, s) - ch) times each entry of z."""
-        return self.u[0] * m[c, :] + self.u[1] * m[s, :] - self.ch * m[ONE, :]
+        return self.ux * m[c, :] + self.uy * m[s, :] - self.ch * m[ONE, :]
+
+    def of(self, cs, one):
+        """u . cs - ch * one, for first moments cs of (c, s) and the moment `one` of 1."""
+        return self.ux * cs[0] + self.uy * cs[1] - self.ch * one
 
 
 class RelaxedFaceContact:
+    """`cuts[k]`: the chord cuts of step k, each a pair (cut of knot k, cut of knot k + 1); each cut is
+    multiplied by the step's valid linear inequalities (RLT), and the two cuts by each other."""
+
     def __init__(
-        self, face: Face, model: PushModel, forms: StepForms, knots: int, phi, arc: ArcParameters | None = None
+        self,
+        face: Face,
+        model: PushModel,
+        forms: StepForms,
+        knots: int,
+        phi,
+        cuts: list[list[tuple[ArcParameters, ArcParameters]]] | None = None,
     ):
         self.face, self.model, self.knots, self.phi = face, model, knots, phi
         steps = knots - 1
         self.blocks = [cp.Variable((BLOCK, BLOCK), symmetric=True) for _ in range(steps)]
         self.x = cp.Variable(knots)
         self.y = cp.Variable(knots)
+        self.cut_rows = []  # (variable, the moments it stands for): a lifted point sets one from the other
         cons = []
         reach = model.reach
         cons += [self.x <= reach * phi, self.x >= -reach * phi, self.y <= reach * phi, self.y >= -reach * phi]
@@ -180,15 +190,18 @@ class RelaxedFaceContact:
             pos = cp.hstack([self.x[k], self.x[k + 1], self.y[k], self.y[k + 1]])
             cons += [m >> 0, m[ONE, ONE] == phi, eq_a @ v + forms.eq_l @ pos == 0, in_a @ v >= 0]
             cost = cost + cp.sum(cp.multiply(forms.cost_q, m))
-            if arc is not None:
-                g = np.array(forms.linear)
-                for c, s in ((C0, S0), (C1, S1)):
-                    row = arc.row(m, c, s)
-                    cons += [row[ONE] >= 0, g @ row >= 0]  # the cut, and its products with valid bounds
-                # (u . cs_k - ch)(u . cs_k+1 - ch) >= 0: both knots inside the window.
-                pair = sum(arc.uu[i, j] * m[(C0, S0)[i], (C1, S1)[j]] for i in range(2) for j in range(2))
-                pair = pair - sum(arc.uch[i] * (m[ONE, (C1, S1)[i]] + m[(C0, S0)[i], ONE]) for i in range(2))
-                cons.append(pair + arc.chch * m[ONE, ONE] >= 0)
+            g = np.array(forms.linear)
+            for first, second in cuts[k] if cuts else ():
+                # Each cut's row of moments as a variable of its own, so that its products with the valid
+                # bounds, and with the other knot's cut, carry no parameters: cvxpy compiles them fast.
+                rows = []
+                for arc, (c, s) in ((first, (C0, S0)), (second, (C1, S1))):
+                    row = cp.Variable(BLOCK)
+                    self.cut_rows.append((row, arc.row(m, c, s)))
+                    cons += [row == self.cut_rows[-1][1], row[ONE] >= 0, g @ row >= 0]
+                    rows.append(row)
+                # (u0 . cs_k - ch0)(u1 . cs_k+1 - ch1) >= 0: both knots inside their windows.
+                cons.append(second.of(rows[0][[C1, S1]], rows[0][ONE]) >= 0)
             if k:
                 prev = self.blocks[k - 1]
                 cons.append(prev[np.ix_(SHARED_TAIL, SHARED_TAIL)] == m[np.ix_(SHARED_HEAD, SHARED_HEAD)])

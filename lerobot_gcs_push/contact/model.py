@@ -113,3 +113,31 @@ class HeadingWindow:
     @property
     def cos_half(self) -> float:
         return math.cos(self.half_width)
+
+
+# Widens every reachable window: keeps the cut valid against rounding in the angles it is computed from.
+_REACH_SLACK = 1e-6
+
+
+def reachable_windows(start: float, goal: float, steps: int, max_step: float) -> list[HeadingWindow | None]:
+    """Where knot j of every plan can be, for j = 0..steps: a plan takes `steps` knot steps, each turning at
+    most `max_step`, from the start heading to the goal heading, so knot j lies within j * max_step of the
+    start and (steps - j) * max_step of the goal. Unlike a HeadingWindow around the start-to-goal arc this
+    is no restriction: every plan's headings satisfy it, so the bound stays a bound of the whole problem.
+
+    On the circle the two arcs meet in one arc unless they are long enough to meet again behind
+    (steps * max_step >= 2 pi - |goal - start|); then knot j gets the shorter of the two arcs, which holds
+    the meeting too. None where that arc is the whole circle."""
+    goal = start + math.remainder(goal - start, 2 * math.pi)
+    single = steps * max_step < 2 * math.pi - abs(goal - start)
+    out = []
+    for j in range(steps + 1):
+        a, b = j * max_step, (steps - j) * max_step
+        if single:
+            lo, hi = max(start - a, goal - b), min(start + a, goal + b)
+            mid, half = (lo + hi) / 2, max(hi - lo, 0.0) / 2
+        else:
+            mid, half = (start, a) if a <= b else (goal, b)
+        half += _REACH_SLACK
+        out.append(HeadingWindow(mid, half) if half < math.pi else None)
+    return out

@@ -93,7 +93,7 @@ class RelaxedNonCollision:
     """A perspective copy of one non-collision mode: the slider's pose (carried, with its SO(2) moments
     [1, c, s] so that second moments flow from one contact mode to the next) and the finger's knots."""
 
-    def __init__(self, model: PushModel, regions: list[Region], route, per_region: int, phi, arc=None):
+    def __init__(self, model: PushModel, regions: list[Region], route, per_region: int, phi, arcs=()):
         self.route, self.per_region, self.phi = route, per_region, phi
         n = knots_of(route, per_region)
         self.q = cp.Variable((n, 2))
@@ -106,8 +106,8 @@ class RelaxedNonCollision:
             self.moments[0, 1:] == self.pose[2:],
             cp.abs(self.pose[:2]) <= model.reach * phi,
         ]
-        if arc is not None:
-            cons.append(arc.u @ self.pose[2:] >= arc.ch * phi)
+        for arc in arcs:  # the chord cuts (ArcParameters) on the slider's heading, which stays put here
+            cons.append(arc.of(self.pose[2:], phi) >= 0)
         for seg in range(n - 1):
             reg = regions[segment_region(route, per_region, seg)]
             for p in (self.q[seg], self.q[seg + 1]):

@@ -45,6 +45,7 @@ class ContactPlanner:
         line_guesses: int = 0,
         edge_copies: bool = False,
         max_step_rotation: float = 0.2,
+        knot_windows: bool = True,
     ):
         self.scene = scene
         self.model = PushModel.from_scene(scene)
@@ -79,6 +80,9 @@ class ContactPlanner:
         self.fallback_paths = fallback_paths
         self.line_guesses = line_guesses
         self.edge_copies = edge_copies
+        # Each knot's reachable arc of headings as a chord cut (model.reachable_windows): valid for every plan,
+        # it keeps the relaxation's headings from cutting across the unit circle during large turns.
+        self.knot_windows = knot_windows
 
     @property
     def relaxation(self) -> GraphRelaxation:
@@ -93,6 +97,7 @@ class ContactPlanner:
                 self.window_margin is not None,
                 self.edge_copies,
                 self.max_step,
+                self.knot_windows,
             )
         return self._relaxation
 

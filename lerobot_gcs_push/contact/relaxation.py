@@ -13,9 +13,14 @@ from dataclasses import dataclass
 import cvxpy as cp
 import numpy as np
 
-from lerobot_gcs_push.contact.face_contact import MAX_STEP_ROTATION, ArcParameters, RelaxedFaceContact, step_forms
+from lerobot_gcs_push.contact.face_contact import (
+    MAX_STEP_ROTATION,
+    ArcParameters,
+    RelaxedFaceContact,
+    step_forms,
+)
 from lerobot_gcs_push.contact.graph import ContactGraph
-from lerobot_gcs_push.contact.model import PushModel
+from lerobot_gcs_push.contact.model import PushModel, reachable_windows
 from lerobot_gcs_push.contact.non_collision import RelaxedNonCollision, free_regions
 
 
@@ -62,8 +67,9 @@ class GraphRelaxation:
         window: bool = True,
         edge_copies: bool = False,
         max_step: float = MAX_STEP_ROTATION,
+        knot_windows: bool = True,
     ):
-        self.model, self.graph = model, graph
+        self.model, self.graph, self.knots, self.max_step = model, graph, knots, max_step
         self.regions = free_regions(model)
         self.start = cp.Parameter(4)
         self.start_moments = cp.Parameter((3, 3), symmetric=True)
@@ -72,6 +78,11 @@ class GraphRelaxation:
         self.goal = cp.Parameter(4)
         self.goal_moments = cp.Parameter((3, 3), symmetric=True)
         self.arc = ArcParameters() if window else None
+        # Knot j of a plan (counted over the layers) is at most j steps from the start heading and
+        # layers x (knots - 1) - j from the goal's; a plan ending early ends at the goal, inside every later
+        # knot's arc too. So each knot has its arc of headings, valid for every plan (no restriction).
+        steps = graph.layers * (knots - 1)
+        self.knot_arcs = [ArcParameters() for _ in range(steps + 1)] if knot_windows else []
         self.phi_c = cp.Variable(len(graph.contacts), nonneg=True)
         self.phi_f = cp.Variable(len(graph.frees), nonneg=True)
         self.phi_t = cp.Variable(len(graph.contacts), nonneg=True)
@@ -83,7 +94,9 @@ class GraphRelaxation:
         self.contacts = [
             None
             if k in copied
-            else RelaxedFaceContact(model.faces[v.face], model, forms[v.face, v.piece], knots, self.phi_c[k], self.arc)
+            else RelaxedFaceContact(
+                model.faces[v.face], model, forms[v.face, v.piece], knots, self.phi_c[k], self.step_cuts(v.layer)
+            )
             for k, v in enumerate(graph.contacts)
         ]
         self.copies = {}
@@ -91,10 +104,10 @@ class GraphRelaxation:
             v = graph.contacts[c]
             for f in graph.into(c):
                 self.copies[f] = RelaxedFaceContact(
-                    model.faces[v.face], model, forms[v.face, v.piece], knots, self.phi_f[f], self.arc
+                    model.faces[v.face], model, forms[v.face, v.piece], knots, self.phi_f[f], self.step_cuts(v.layer)
                 )
         self.frees = [
-            RelaxedNonCollision(model, self.regions, v.route, per_region, self.phi_f[k], self.arc)
+            RelaxedNonCollision(model, self.regions, v.route, per_region, self.phi_f[k], self.pose_cuts(v.layer))
             for k, v in enumerate(graph.frees)
         ]
         cons = [cp.sum(self.phi_f[graph.starts()]) == 1]
@@ -151,9 +164,33 @@ class GraphRelaxation:
         self.cost = self.cost + sum(cc.cost for cc in self.copies.values())
         self.problem = cp.Problem(cp.Minimize(self.cost), cons)
 
+    def step_cuts(self, layer: int) -> list[list[tuple]]:
+        """The chord cuts of each step of a contact vertex in `layer`: the window's and the knots' own."""
+        out = []
+        for k in range(self.knots - 1):
+            j = layer * (self.knots - 1) + k
+            cuts = [(self.arc, self.arc)] if self.arc is not None else []
+            if self.knot_arcs:
+                cuts.append((self.knot_arcs[j], self.knot_arcs[j + 1]))
+            out.append(cuts)
+        return out
+
+    def pose_cuts(self, layer: int) -> list[ArcParameters]:
+        """The cuts on a free vertex's heading: the slider rests at the last knot of the contact it leaves."""
+        cuts = [self.arc] if self.arc is not None else []
+        if self.knot_arcs and layer >= 0:
+            cuts.append(self.knot_arcs[(layer + 1) * (self.knots - 1)])
+        return cuts
+
     def set_query(self, start_pose, start_q, goal_pose, allow, window=None) -> None:
         if self.arc is not None:
             self.arc.set(window)
+        if self.knot_arcs:
+            windows = reachable_windows(
+                float(start_pose[2]), float(goal_pose[2]), len(self.knot_arcs) - 1, self.max_step
+            )
+            for arc, w in zip(self.knot_arcs, windows):
+                arc.set(w)
         self.start.value = pose_vector(start_pose)
         self.start_moments.value = pose_moments(start_pose)
         self.start_q.value = np.asarray(start_q, float)
