@@ -63,17 +63,14 @@ def verify(scene: Scene, plan) -> bool:
     pose = np.array(plan.slider_poses[0], float)
     for push in plan.pushes:
         a, b, n = faces[push["face"]]
-        t = (b - a) / np.linalg.norm(b - a)
-        p = a + push["lam"] * (b - a)
         if np.any(np.abs(push["ft"]) > scene.finger_box_friction * push["fn"] + 1e-6):
             return False
+        lam = float(push["lam"][0])
         for fn, ft in zip(push["fn"], push["ft"]):
-            d = -fn * n + ft * t
-            w = kappa * (p[0] * d[1] - p[1] * d[0])
-            for _ in range(200):
-                th = pose[2] + 0.5 * w / 200
-                rot = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
-                pose = pose + np.array([*(rot @ d) / 200, w / 200])
+            # The contact point rolls back along the face by r dtheta as the slider turns.
+            pose, lam = _sticking_step(pose, lam, a, b, n, fn, ft, kappa, r, 200)
+        if abs(lam - push["lam"][-1]) * np.linalg.norm(b - a) > 0.03:
+            return False
     end = plan.slider_final
     if np.linalg.norm(pose[:2] - end[:2]) > 0.03 or abs(pose[2] - end[2]) > 0.03:
         return False
@@ -87,6 +84,24 @@ def verify(scene: Scene, plan) -> bool:
                 if shape.signed_distance(poses[k], (1 - w) * fingers[k] + w * fingers[k + 1]) < r - 1e-6:
                     return False
     return True
+
+
+def _sticking_step(pose, lam, a, b, n, fn, ft, kappa, r, sub):
+    """One plan step of the continuous quasi-static model: the body-frame displacement d = -fn n + ft t
+    at a constant rate over the step (RK2 on `sub` sub-steps), the contact point a + lam (b - a)."""
+    e = b - a
+    length = float(np.linalg.norm(e))
+    d = -fn * n + ft * e / length
+    for _ in range(sub):
+        p = a + lam * e
+        w = kappa * (p[0] * d[1] - p[1] * d[0])
+        pm = a + (lam - 0.5 * r / length * w / sub) * e  # the midpoint's contact
+        wm = kappa * (pm[0] * d[1] - pm[1] * d[0])
+        th = pose[2] + 0.5 * wm / sub
+        rot = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+        pose = pose + np.array([*(rot @ d) / sub, wm / sub])
+        lam -= r / length * wm / sub
+    return pose, lam
 
 
 def _p95(x) -> float:

@@ -113,8 +113,8 @@ def test_the_closed_loop_expert_reaches_coverage_in_the_sim(expert_eval):
 
 
 def test_open_loop_plans_stray_and_the_record_says_so(expert_eval):
-    """Pushing from one point is unstable: open-loop the slider strays from the plan (measured: 0 of 10
-    random starts reach coverage). The records stay honest: success is coverage of the final pose."""
+    """Open-loop the slider strays from the plan (measured: 1 of 20 bench starts reach coverage). The
+    records stay honest: success is coverage of the final pose."""
     for rec in read_runs(expert_eval / "runs.jsonl"):
         final = np.load(expert_eval / rec["trajectory"])["slider_pose"][-1]
         assert rec["success"] == (SE2.coverage(final) >= SE2.success_coverage)

@@ -43,15 +43,23 @@ def integrate(pose, pushes, sub: int = 400):
     pose = np.array(pose, float)
     for push in pushes:
         a, b, n = faces[push["face"]]
-        t = (b - a) / np.linalg.norm(b - a)
-        p = a + push["lam"] * (b - a)
+        length = np.linalg.norm(b - a)
+        t = (b - a) / length
+        lam = push["lam"][0]
         for fn, ft in zip(push["fn"], push["ft"]):
             d = -fn * n + ft * t
-            w = kappa * (p[0] * d[1] - p[1] * d[0])
             for _ in range(sub):
-                th = pose[2] + 0.5 * w / sub
+                # The round finger sticks to the slider's material point under it, which moves along the
+                # face by -r dtheta as the slider turns (the finger translates only).
+                p = a + lam * (b - a)
+                w = kappa * (p[0] * d[1] - p[1] * d[0])
+                pm = a + (lam - 0.5 * SCENE.finger_radius * w / sub / length) * (b - a)
+                wm = kappa * (pm[0] * d[1] - pm[1] * d[0])
+                th = pose[2] + 0.5 * wm / sub
                 rot = np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]])
-                pose = pose + np.array([*(rot @ d) / sub, w / sub])
+                pose = pose + np.array([*(rot @ d) / sub, wm / sub])
+                lam -= SCENE.finger_radius * wm / sub / length
+        assert abs(lam - push["lam"][-1]) * length < 0.03  # where the finger ends on the face
     return pose
 
 
@@ -80,7 +88,7 @@ def test_friction_cone_and_contact_geometry(plans):
         for push in plan.pushes:
             assert np.all(push["fn"] >= -1e-7)
             assert np.all(np.abs(push["ft"]) <= SCENE.finger_box_friction * push["fn"] + 1e-6)
-            assert -1e-7 <= push["lam"] <= 1 + 1e-7
+            assert np.all((-1e-7 <= push["lam"]) & (push["lam"] <= 1 + 1e-7))
         poses, fingers = plan.slider_poses, plan.finger_path
         for k, kind in enumerate(plan.segment_kinds):
             if kind == PUSH:  # touching at both ends of a push step
@@ -146,8 +154,8 @@ def lift(relaxation, graph, plan) -> float:
         cost += float(np.sum(np.diff(q, axis=0) ** 2))
         rc.x.value, rc.y.value = push["x"], push["y"]
         for k, m in enumerate(rc.blocks):
-            z = [1, push["lam"], push["c"][k], push["s"][k], push["fn"][k], push["ft"][k]]
-            z = np.array(z + [push["c"][k + 1], push["s"][k + 1]])
+            z = [1, push["lam"][k], push["c"][k], push["s"][k], push["fn"][k], push["ft"][k]]
+            z = np.array(z + [push["c"][k + 1], push["s"][k + 1], push["lam"][k + 1]])
             m.value = np.outer(z, z)
         for row, moments in rc.cut_rows:
             row.value = moments.value

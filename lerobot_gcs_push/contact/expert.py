@@ -1,11 +1,11 @@
 """The planner through contact as the rotating envs' expert, open-loop (one plan, executed) or closed-loop
 (replanning from the measured pose whenever the slider strays from the plan).
 
-Pushing a slider from one point is unstable: a small slip of the contact point grows the lever arm, and
-the slider turns away from the plan. Replayed open-loop in `GcsPushBoxSE2-v0`, first plans end 0.2-2 m
-from their planned end (0 of 20 bench starts reach coverage); closed-loop, 20 of 20, and 7 of 8 T starts
-(experiments/rotation/README.md has the rules tried on the way). The expert reads the true state from
-`info`.
+A planned push, replayed in the sim, ends where the plan says (the contact modes model the round finger's
+rolling contact); a whole plan executed open-loop still strays, by the finger's lag at each push's start
+and end and by pushes at the friction cone's edge that slip: 1 of 20 bench starts of `GcsPushBoxSE2-v0`
+reach coverage so, against 20 of 20 closed-loop (experiments/rotation/README.md has the rules tried on
+the way). The expert reads the true state from `info`.
 """
 
 from __future__ import annotations

@@ -1,9 +1,13 @@
 """A sticking face-contact mode: its constraints as quadratic forms, their semidefinite relaxation, and
 the same constraints as a nonlinear program.
 
-One knot step k couples the monomials of z_k = [1, lam, c_k, s_k, fn_k, ft_k, c_k+1, s_k+1] (lam: where
-on the face the finger sits, constant while sticking; fn, ft: the body-frame displacement along -n and t;
-(c, s): the heading on SO(2)) and the linear positions x_k, x_k+1, y_k, y_k+1. Every constraint is
+One knot step k couples the monomials of z_k = [1, lam_k, c_k, s_k, fn_k, ft_k, c_k+1, s_k+1, lam_k+1]
+(lam: where on the face the finger touches; fn, ft: the body-frame displacement along -n and t; (c, s):
+the heading on SO(2)) and the linear positions x_k, x_k+1, y_k, y_k+1. Sticking does not hold lam still:
+the finger is a sphere that translates only, so it holds the slider's material point under it, and as the
+slider turns by dtheta that point moves along the face by -finger_radius * dtheta (the finger rolls on
+the face without turning). Fed a sim finger's path, the model follows the sim to 2 mm over 1.8 rad of
+turning; with lam held still it was 18 cm off (experiments/rotation/README.md). Every constraint is
 written once, here, as coefficients on those monomials (`StepForms`); the relaxation reads them against
 a moment block M_k ~ z_k z_k^T, the nonlinear program against z_k itself. Only that reading differs.
 """
@@ -19,10 +23,11 @@ import numpy as np
 
 from lerobot_gcs_push.contact.model import Face, PushModel, cross
 
-ONE, LAM, C0, S0, FN, FT, C1, S1 = range(8)
-BLOCK = 8
-# Adjacent blocks share [1, lam, c_k+1, s_k+1]: block k's (ONE, LAM, C1, S1) is block k+1's (ONE, LAM, C0, S0).
-SHARED_TAIL = [ONE, LAM, C1, S1]
+ONE, LAM, C0, S0, FN, FT, C1, S1, LAM1 = range(9)
+BLOCK = 9
+# Adjacent blocks share [1, lam, c, s] of their common knot: block k's (ONE, LAM1, C1, S1) is block k+1's
+# (ONE, LAM, C0, S0).
+SHARED_TAIL = [ONE, LAM1, C1, S1]
 SHARED_HEAD = [ONE, LAM, C0, S0]
 POSE_HEAD = [ONE, C0, S0]
 POSE_TAIL = [ONE, C1, S1]
@@ -32,7 +37,7 @@ MAX_STEP_ROTATION = 0.35
 
 
 def _form(monomials: dict[tuple[int, int], float]) -> np.ndarray:
-    """A symmetric 8 x 8 Q with <Q, z z^T> = sum coef * z_i z_j."""
+    """A symmetric BLOCK x BLOCK Q with <Q, z z^T> = sum coef * z_i z_j."""
     q = np.zeros((BLOCK, BLOCK))
     for (i, j), c in monomials.items():
         if i == j:
@@ -56,11 +61,11 @@ class StepForms:
     <Q, zz^T> >= 0; `redundant` inequalities (RLT products) hold for every feasible z and only tighten
     the relaxation; the cost <Q_cost, zz^T>."""
 
-    eq_q: np.ndarray  # (m, 8, 8)
+    eq_q: np.ndarray  # (m, BLOCK, BLOCK)
     eq_l: np.ndarray  # (m, 4)
-    ineq_q: np.ndarray  # (p, 8, 8)
-    redundant_q: np.ndarray  # (r, 8, 8)
-    cost_q: np.ndarray  # (8, 8)
+    ineq_q: np.ndarray  # (p, BLOCK, BLOCK)
+    redundant_q: np.ndarray  # (r, BLOCK, BLOCK)
+    cost_q: np.ndarray  # (BLOCK, BLOCK)
     linear: list[np.ndarray] = field(default_factory=list)  # valid first-order inequalities g . z >= 0
     lam_range: tuple[float, float] = (0.0, 1.0)
 
@@ -82,7 +87,8 @@ def step_forms(
         my[(s, FN)], my[(s, FT)], my[(c, FN)], my[(c, FT)] = n[0] / 2, -t[0] / 2, n[1] / 2, -t[1] / 2
     eqs.append((mx, [-1.0, 1.0, 0.0, 0.0]))
     eqs.append((my, [0.0, 0.0, -1.0, 1.0]))
-    # Rotation: sin(theta_k+1 - theta_k) = kappa * (a + lam e) x d; e x t = 0.
+    # Rotation: sin(theta_k+1 - theta_k) = kappa * p x d, p = a + e (lam_k + lam_k+1) / 2 the step's
+    # midpoint contact (e x t = 0).
     eqs.append(
         (
             {
@@ -90,11 +96,15 @@ def step_forms(
                 (S0, C1): -1.0,
                 (ONE, FN): -k * cross(a, -n),
                 (ONE, FT): -k * cross(a, t),
-                (LAM, FN): -k * cross(e, -n),
+                (LAM, FN): -k * cross(e, -n) / 2,
+                (LAM1, FN): -k * cross(e, -n) / 2,
             },
             [0.0] * 4,
         )
     )
+    # Rolling: lam_k+1 = lam_k - (finger_radius / |e|) sin(theta_k+1 - theta_k).
+    roll = model.finger_radius / float(np.linalg.norm(e))
+    eqs.append(({(ONE, LAM1): 1.0, (ONE, LAM): -1.0, (C0, S1): roll, (S0, C1): -roll}, [0.0] * 4))
     for c, s in ((C0, S0), (C1, S1)):
         eqs.append(({(c, c): 1.0, (s, s): 1.0, (ONE, ONE): -1.0}, [0.0] * 4))
     step = {(C0, C1): 1.0, (S0, S1): 1.0, (ONE, ONE): -math.cos(max_step)}
@@ -107,7 +117,10 @@ def step_forms(
         _lin({FN: model.mu, FT: 1.0}),
     ]
     trig = [_lin({ONE: 1.0, i: sgn}) for i in (C0, S0, C1, S1) for sgn in (1.0, -1.0)]
-    ineqs = [_form(step)] + [_form({(ONE, i): g[i] for i in range(BLOCK) if g[i]}) for g in contact]
+    # The step's last lam is the next step's first (and bounded, with its products, there); the last
+    # step's needs its own bounds.
+    ends = [_lin({LAM1: 1.0, ONE: -lam_range[0]}), _lin({ONE: lam_range[1], LAM1: -1.0})]
+    ineqs = [_form(step)] + [_form({(ONE, i): g[i] for i in range(BLOCK) if g[i]}) for g in contact + ends]
     redundant = []
     if rlt:
         # Products of pairs of valid linear inequalities (RLT): the slack of the plain relaxation sits in
@@ -219,12 +232,13 @@ class RelaxedFaceContact:
         idx = POSE_TAIL if end else POSE_HEAD
         return m[np.ix_(idx, idx)]
 
-    def lam(self):
-        return self.blocks[0][ONE, LAM]
+    def lam(self, end: bool):
+        return self.blocks[-1][ONE, LAM1] if end else self.blocks[0][ONE, LAM]
 
-    def finger(self):
+    def finger(self, end: bool):
+        """The finger's centre (slider frame, perspective) as the mode begins or ends."""
         f = self.face
-        return self.phi * (f.a + self.model.finger_radius * f.n) + self.lam() * f.e
+        return self.phi * (f.a + self.model.finger_radius * f.n) + self.lam(end) * f.e
 
     def values(self, phi_value: float) -> dict:
         """The copy's values divided by its flow: an initial guess for the nonlinear program."""
@@ -232,7 +246,7 @@ class RelaxedFaceContact:
         c = [b.value[ONE, C0] / w for b in self.blocks] + [self.blocks[-1].value[ONE, C1] / w]
         s = [b.value[ONE, S0] / w for b in self.blocks] + [self.blocks[-1].value[ONE, S1] / w]
         return {
-            "lam": float(self.blocks[0].value[ONE, LAM] / w),
+            "lam": np.array([b.value[ONE, LAM] / w for b in self.blocks] + [self.blocks[-1].value[ONE, LAM1] / w]),
             "c": np.array(c),
             "s": np.array(s),
             "fn": np.array([b.value[ONE, FN] / w for b in self.blocks]),
@@ -249,14 +263,14 @@ class RelaxedFaceContact:
 class NlpFaceContact:
     def __init__(self, prog, face: Face, model: PushModel, forms: StepForms, knots: int, tag: str, window=None):
         self.face, self.model, self.knots, self.lam_range = face, model, knots, forms.lam_range
-        self.lam = prog.NewContinuousVariables(1, f"{tag}_lam")[0]
+        self.lam = prog.NewContinuousVariables(knots, f"{tag}_lam")
         self.c = prog.NewContinuousVariables(knots, f"{tag}_c")
         self.s = prog.NewContinuousVariables(knots, f"{tag}_s")
         self.fn = prog.NewContinuousVariables(knots - 1, f"{tag}_fn")
         self.ft = prog.NewContinuousVariables(knots - 1, f"{tag}_ft")
         self.x = prog.NewContinuousVariables(knots, f"{tag}_x")
         self.y = prog.NewContinuousVariables(knots, f"{tag}_y")
-        prog.AddBoundingBoxConstraint(*forms.lam_range, self.lam)
+        prog.AddBoundingBoxConstraint(*forms.lam_range, self.lam)  # every knot's
         prog.AddBoundingBoxConstraint(-model.reach, model.reach, self.x)
         prog.AddBoundingBoxConstraint(-model.reach, model.reach, self.y)
         prog.AddBoundingBoxConstraint(-1.0, 1.0, self.c)
@@ -268,7 +282,8 @@ class NlpFaceContact:
                 prog.AddLinearConstraint(u[0] * self.c[k] + u[1] * self.s[k] >= window.cos_half)
         self.cost = 0
         for k in range(knots - 1):
-            z = np.array([1.0, self.lam, self.c[k], self.s[k], self.fn[k], self.ft[k], self.c[k + 1], self.s[k + 1]])
+            z = [1.0, self.lam[k], self.c[k], self.s[k], self.fn[k], self.ft[k], self.c[k + 1], self.s[k + 1]]
+            z = np.array(z + [self.lam[k + 1]])
             pos = np.array([self.x[k], self.x[k + 1], self.y[k], self.y[k + 1]])
             for q, lin in zip(forms.eq_q, forms.eq_l):
                 prog.AddConstraint(_quadratic(q, z) + _dot(lin, pos) == 0)
@@ -281,15 +296,16 @@ class NlpFaceContact:
         k = -1 if end else 0
         return [self.x[k], self.y[k], self.c[k], self.s[k]]
 
-    def finger(self):
-        return finger_body(self.face, self.model, self.lam)
+    def finger(self, end: bool):
+        return finger_body(self.face, self.model, self.lam[-1 if end else 0])
 
     def set_guess(self, prog, guess: dict) -> None:
         c, s = np.asarray(guess["c"], float), np.asarray(guess["s"], float)
         norm = np.maximum(np.hypot(c, s), 1e-9)  # the relaxation's headings lie inside the unit disk
         prog.SetInitialGuess(self.c, c / norm)
         prog.SetInitialGuess(self.s, s / norm)
-        prog.SetInitialGuess(self.lam, float(np.clip(guess["lam"], *self.lam_range)))
+        lam = np.broadcast_to(np.asarray(guess["lam"], float), (self.knots,))  # a baseline's guess is one lam
+        prog.SetInitialGuess(self.lam, np.clip(lam, *self.lam_range))
         prog.SetInitialGuess(self.fn, np.maximum(guess["fn"], 0.0))
         prog.SetInitialGuess(self.ft, guess["ft"])
         prog.SetInitialGuess(self.x, guess["x"])
@@ -298,7 +314,7 @@ class NlpFaceContact:
     def read(self, result) -> dict:
         return {
             "face": self.face.index,
-            "lam": float(result.GetSolution(self.lam)),
+            "lam": result.GetSolution(self.lam),
             "c": result.GetSolution(self.c),
             "s": result.GetSolution(self.s),
             "fn": result.GetSolution(self.fn),

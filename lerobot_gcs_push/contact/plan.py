@@ -131,14 +131,13 @@ def trace(model: PushModel, graph: ContactGraph, r: Restriction, start_pose) -> 
                 kinds.append(FREE)
         face = model.faces[graph.contacts[c].face]
         modes.append(graph.contacts[c].name)
-        qb = finger_body(face, model, sol["lam"])
         th = np.unwrap(np.arctan2(sol["s"], sol["c"]))
         th += 2 * np.pi * np.round((pose[2] - th[0]) / (2 * np.pi))
         for k in range(len(th)):
             p = np.array([sol["x"][k], sol["y"][k], th[k]])
             if k:
                 poses.append(p)
-                fingers.append(world(p, qb))
+                fingers.append(world(p, finger_body(face, model, sol["lam"][k])))
                 kinds.append(PUSH)
         pose = poses[-1]
         pushes.append({k: sol[k] for k in ("face", "lam", "fn", "ft", "x", "y", "c", "s")})

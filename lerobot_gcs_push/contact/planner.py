@@ -65,7 +65,7 @@ class ContactPlanner:
         self.forms = contact_forms(self.model, self.graph, self.rot_weight, rlt, self.max_step)
         # The baseline plans on the plain graph (one contact vertex per face, the whole face): it must not
         # inherit the relaxation's splits of the contact location.
-        self.baseline_graph = build_graph(self.model, 1, 1)
+        self.baseline_graph = build_graph(self.model, layers, 1)
         self.baseline_forms = contact_forms(self.model, self.baseline_graph, self.rot_weight, rlt, self.max_step)
         # Rounding keeps a path's faces but lets the finger anywhere on each: the pieces tighten the
         # bound, and a plan outside its piece is still a plan of the graph (the pieces cover the face).
@@ -208,8 +208,10 @@ class ContactPlanner:
         )
 
     def baseline(self, slider_pose, finger) -> ContactPlan:
-        """The same nonlinear program without the relaxation: one push from the face that looks away from
-        the goal, reached by the shortest route, SNOPT from a straight-line guess."""
+        """The same nonlinear program without the relaxation: one push per layer, each from the face that
+        looks away from the goal, reached by the shortest route, SNOPT from a straight-line guess. (One
+        push once sufficed; as the slider turns the round finger's contact rolls toward the face's middle,
+        so one push rarely reaches the goal's heading.)"""
         pose, q, goal, allow = self.query(slider_pose, finger)
         t0 = time.perf_counter()
         c, s = np.cos(pose[2]), np.sin(pose[2])
@@ -219,8 +221,14 @@ class ContactPlanner:
         graph = self.baseline_graph
         options = [k for k, v in enumerate(graph.frees) if v.layer == START and allow[v.source] and v.target == face]
         start_free = min(options, key=lambda k: len(graph.frees[k].route))
-        contact = graph.contact_index(0, face)
-        path = Path((start_free,), (contact,))
+        again = [
+            min(
+                (k for k, v in enumerate(graph.frees) if v.layer == layer and v.source == face and v.target == face),
+                key=lambda k: len(graph.frees[k].route),
+            )
+            for layer in range(self.layers - 1)
+        ]
+        path = Path((start_free, *again), tuple(graph.contact_index(layer, face) for layer in range(self.layers)))
         r = self._restrict(path, pose, q, goal, self.window(pose, goal), graph, self.baseline_forms)
         dt = time.perf_counter() - t0
         if not r.success:

@@ -133,7 +133,7 @@ class GraphRelaxation:
             cons += [
                 cc.pose(False) == fr.pose,
                 cc.pose_moments(False) == fr.moments,
-                cc.finger() == fr.q[-1],
+                cc.finger(False) == fr.q[-1],
                 cc.pose(True) == self.phi_f[f] * self.goal,
                 cc.pose_moments(True) == self.phi_f[f] * self.goal_moments,
             ]
@@ -154,12 +154,12 @@ class GraphRelaxation:
                 phi == cp.sum(self.phi_f[outs]) + self.phi_t[c] if outs else phi == self.phi_t[c],
                 rc.pose(False) == sum(self.frees[f].pose for f in ins),
                 rc.pose_moments(False) == sum(self.frees[f].moments for f in ins),
-                rc.finger() == sum(self.frees[f].q[-1] for f in ins),
+                rc.finger(False) == sum(self.frees[f].q[-1] for f in ins),
                 rc.pose(True) == sum((self.frees[f].pose for f in outs), self.phi_t[c] * self.goal),
                 rc.pose_moments(True) == sum((self.frees[f].moments for f in outs), self.phi_t[c] * self.goal_moments),
             ]
             if outs:
-                cons.append(rc.finger() == sum(self.frees[f].q[0] for f in outs))
+                cons.append(rc.finger(True) == sum(self.frees[f].q[0] for f in outs))
         self.cost = sum(rc.cost for rc in self.contacts if rc is not None) + sum(fr.cost for fr in self.frees)
         self.cost = self.cost + sum(cc.cost for cc in self.copies.values())
         self.problem = cp.Problem(cp.Minimize(self.cost), cons)

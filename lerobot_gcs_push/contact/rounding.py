@@ -123,9 +123,9 @@ def solve_restriction(
     ]
     start, goal = pose_vector(start_pose), pose_vector(goal_pose)
     for k, (fr, ct) in enumerate(zip(fs, cs)):
-        first = np.asarray(start_q, float) if k == 0 else cs[k - 1].finger()
+        first = np.asarray(start_q, float) if k == 0 else cs[k - 1].finger(True)
         _equal(prog, fr.q[0], first)
-        _equal(prog, fr.q[-1], ct.finger())
+        _equal(prog, fr.q[-1], ct.finger(False))
         _equal(prog, ct.pose(False), start if k == 0 else cs[k - 1].pose(True))
     _equal(prog, cs[-1].pose(True), goal)
     for ct, g in zip(cs, guess_contacts):
