@@ -54,7 +54,7 @@ def random_starts(planner: ContactPlanner, n: int, seed: int) -> list[tuple[np.n
     return out
 
 
-def verify(scene: Scene, plan) -> bool:
+def verify(scene: Scene, plan, rolling_radius: float) -> bool:
     """Independent checks of a plan: the continuous quasi-static model re-integrated from its pushes ends
     within 3 cm / 0.03 rad of the plan's end; the finger touches the slider along pushes and clears it
     (sampled) along free segments; the friction cone holds."""
@@ -68,7 +68,7 @@ def verify(scene: Scene, plan) -> bool:
         lam = float(push["lam"][0])
         for fn, ft in zip(push["fn"], push["ft"]):
             # The contact point rolls back along the face by r dtheta as the slider turns.
-            pose, lam = _sticking_step(pose, lam, a, b, n, fn, ft, kappa, r, 200)
+            pose, lam = _sticking_step(pose, lam, a, b, n, fn, ft, kappa, rolling_radius, 200)
         if abs(lam - push["lam"][-1]) * np.linalg.norm(b - a) > 0.03:
             return False
     end = plan.slider_final
@@ -162,7 +162,7 @@ def run(n: int = 20, seed: int = 0, slider: str = "box", episodes: bool = True, 
                 pass
         if plan is not None:
             rounded += 1
-            verified += verify(scene, plan)
+            verified += verify(scene, plan, planner.model.rolling_radius)
             times.append(plan.solve_time_s)
             relax_times.append(plan.extra["relaxation_s"])
             round_times.append(plan.extra["rounding_s"])

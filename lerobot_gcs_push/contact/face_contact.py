@@ -103,7 +103,7 @@ def step_forms(
         )
     )
     # Rolling: lam_k+1 = lam_k - (finger_radius / |e|) sin(theta_k+1 - theta_k).
-    roll = model.finger_radius / float(np.linalg.norm(e))
+    roll = model.rolling_radius / float(np.linalg.norm(e))
     eqs.append(({(ONE, LAM1): 1.0, (ONE, LAM): -1.0, (C0, S1): roll, (S0, C1): -roll}, [0.0] * 4))
     for c, s in ((C0, S0), (C1, S1)):
         eqs.append(({(c, c): 1.0, (s, s): 1.0, (ONE, ONE): -1.0}, [0.0] * 4))

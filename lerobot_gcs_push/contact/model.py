@@ -50,6 +50,9 @@ class PushModel:
     goal: tuple[float, float, float]
     reach: float  # slider centres stay within |x|, |y| <= reach
     finger_reach: float  # finger centre within this distance (inf-norm) of the slider centre, slider frame
+    # A sticking contact moves along the face by -rolling_radius * dtheta (face_contact.py): the finger's
+    # radius, or 0 for the model that holds the contact still (ContactPlanner(rolling=False)).
+    rolling_radius: float = 0.0
 
     @classmethod
     def from_scene(cls, scene: Scene) -> PushModel:
@@ -79,6 +82,7 @@ class PushModel:
             goal=(float(scene.goal[0]), float(scene.goal[1]), float(scene.goal_heading)),
             reach=scene.box_reach,
             finger_reach=2 * scene.finger_limit,  # any commanded finger, seen from any slider centre
+            rolling_radius=scene.finger_radius,
         )
 
     def goal_heading_near(self, heading: float) -> float:
