@@ -206,7 +206,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--n", type=int, default=20)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--slider", default="box", choices=("box", "tee"))
-    ap.add_argument("--layers", type=int, default=2)
+    ap.add_argument("--layers", type=int, default=None, help="default: the planner's (box 2, T 3)")
     ap.add_argument("--knots", type=int, default=None, help="default: enough to turn the slider to its goal")
     ap.add_argument("--pieces", type=int, default=1, help="contact-location intervals per face")
     ap.add_argument("--window-margin", type=float, default=None, help="heading window (rad) and its chord cut")
@@ -215,6 +215,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--no-rlt", action="store_true")
     ap.add_argument("--no-knot-windows", action="store_true", help="without each knot's reachable-heading cut")
     ap.add_argument("--no-episodes", action="store_true", help="plans only, no episodes in the env")
+    ap.add_argument("--no-rolling", action="store_true", help="hold the sticking contact still (the old model)")
     args = ap.parse_args(argv)
     stats = run(
         args.n,
@@ -229,6 +230,7 @@ def main(argv=None) -> dict:
         edge_copies=args.edge_copies,
         max_step_rotation=args.max_step_rotation,
         knot_windows=not args.no_knot_windows,
+        rolling=not args.no_rolling,
     )
     for k, v in stats.items():
         print(f"{k:32s} {v:.4g}")

@@ -33,7 +33,7 @@ class ContactPlanner:
     def __init__(
         self,
         scene: Scene,
-        layers: int = 2,
+        layers: int | None = None,
         knots: int | None = None,
         per_region: int = 2,
         rot_weight: float | None = None,
@@ -47,17 +47,19 @@ class ContactPlanner:
         edge_copies: bool = False,
         max_step_rotation: float = 0.2,
         knot_windows: bool = True,
-        rolling: bool | None = None,
+        rolling: bool = True,
     ):
         self.scene = scene
         self.model = PushModel.from_scene(scene)
         # The round finger's contact rolls along the face as the slider turns: modelled, a planned push
-        # ends in the sim where the plan says. Off by default for the T only: a rolling contact turns it
-        # less per push, and with 2 layers 2 of 4 bench starts rounded (10 of 10 without).
-        if rolling is None:
-            rolling = self.model.symmetry > 1
+        # ends in the sim where the plan says (rolling=False holds it still, the model before 2026-12-03).
         if not rolling:
             self.model = dataclasses.replace(self.model, rolling_radius=0.0)
+        # Pushes: a rolling contact turns the slider less per push, and the T's goal may be pi away. With 2
+        # the T rounded 2 of 4 bench starts; with 3, 10 of 10 at a 15 % median gap and plans a third
+        # cheaper than 2 layers without rolling (experiments/rotation/README.md). The square turns pi/4.
+        if layers is None:
+            layers = 2 if self.model.symmetry > 1 else 3
         self.max_step = max_step_rotation
         # Enough knots that the layers can turn the slider to its farthest goal copy (the square: pi/4 off;
         # the T: pi), and never fewer than 6, the count the box's bench numbers were measured with.
