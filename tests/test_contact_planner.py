@@ -180,6 +180,53 @@ def test_rounded_plan_lifts_into_the_relaxation(planner, plans):
         assert plan.lower_bound <= cost + 1e-6
 
 
+def test_relaxation_on_the_conic_core_is_cvxpys_program(planner):
+    """The relaxation solved from its cached conic data (Clarabel called directly) against cvxpy solving
+    the same program: the same optimum; the values read back from the conic solution satisfy every
+    constraint of the cvxpy program and evaluate to that optimum (so the unpacking reads each variable
+    from the right entries); and the reported bound, Clarabel's dual objective, lies below it."""
+    import cvxpy as cp
+
+    relax = planner.relaxation
+    for pose, finger in STARTS[:2]:
+        p, q, goal, allow = planner.query(pose, finger)
+        res = relax.solve(p, q, goal, allow, planner.window(p, goal))
+        worst = max(float(np.max(c.violation(), initial=0.0)) for c in relax.problem.constraints)
+        assert worst < 1e-5
+        assert float(relax.problem.objective.value) == pytest.approx(res.bound, rel=1e-5)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            reference = relax.problem.solve(solver=cp.CLARABEL)
+        assert res.bound == pytest.approx(reference, rel=1e-5)
+        assert res.bound <= reference * (1 + 1e-6)
+
+
+def test_a_fresh_contact_planner_reads_its_compiled_relaxation(monkeypatch, tmp_path):
+    """The first planner of a machine compiles the relaxation and keeps it; a fresh one (another CLI call,
+    another worker) compiles nothing and plans the same plan."""
+    import cvxpy as cp
+
+    from lerobot_gcs_push.planner.conic import CACHE_ENV
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    calls = []
+    original = cp.Problem.get_problem_data
+
+    def counting(self, *args, **kwargs):
+        calls.append(1)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(cp.Problem, "get_problem_data", counting)
+    pose, finger = STARTS[0]
+    first = ContactPlanner(SCENE).plan(pose, finger)
+    assert len(calls) == 1 and len(list(tmp_path.glob("contact-relaxation-*.npz"))) == 1
+    second = ContactPlanner(SCENE).plan(pose, finger)
+    assert len(calls) == 1
+    assert second.cost == first.cost and second.lower_bound == first.lower_bound
+    ContactPlanner(SCENE, rolling=False).warm_up()  # another model: its own program
+    assert len(calls) == 2 and len(list(tmp_path.glob("contact-relaxation-*.npz"))) == 2
+
+
 def test_near_goal_start_is_rescued_by_the_fallback(planner):
     """At the goal but 0.02 rad off: the relaxation's favourite paths are infeasible (it never detects
     infeasible modes); the ranked fallback finds a plan, and its bound stays below it."""

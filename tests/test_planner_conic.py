@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from lerobot_gcs_push.planner import GcsPlanner
-from lerobot_gcs_push.planner.conic import Infeasible, ParametricConic
-from lerobot_gcs_push.planner.conic_gcs import CACHE_ENV
+from lerobot_gcs_push.planner.conic import CACHE_ENV, Infeasible, ParametricConic
 from lerobot_gcs_push.planner.restriction import Restriction
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
@@ -75,7 +74,7 @@ def test_fixing_variables_matches_cvxpy_with_equalities():
     prob = cp.Problem(cp.Minimize(cp.norm(x[:2] - p) + x[2]), [x >= -1, x[2] >= x[0], x[1] <= 2])
     data = ParametricConic(prob, [p], {"x": x})
     theta = np.array([0.5, 3.0])
-    values = np.full(len(data.c_map), np.nan)
+    values = np.full(data.n, np.nan)
     values[data.columns["x"].start] = 0.25
     sol = data.at(theta).fix(values).solve()
     p.value = theta
@@ -170,3 +169,33 @@ def test_the_cache_tells_graphs_apart(compilations, tmp_path):
     assert len(list(tmp_path.glob("gcs-relaxation-*.npz"))) == 2
     box, finger = (2.0, -1.0), (-3.0, 0.0)
     assert other.plan(box, finger).cost > GcsPlanner(SCENE).plan(box, finger).cost + 0.1
+
+
+def test_semidefinite_program_and_its_unpacked_values_match_cvxpy(tmp_path):
+    """A small SDP with a symmetric matrix variable and parameters in A, b and c: the conic data taken
+    once (and again from its file), evaluated at a new theta and solved by Clarabel directly, gives
+    cvxpy's optimum, its symmetric matrix entry by entry, and a dual bound below the optimum."""
+    X, y = cp.Variable((3, 3), symmetric=True), cp.Variable(2)
+    C, a, w = cp.Parameter((3, 3)), cp.Parameter(2), cp.Parameter(nonneg=True)
+    prob = cp.Problem(
+        cp.Minimize(cp.sum(cp.multiply(C, X)) + w * cp.sum(y)),
+        [X >> 0, cp.trace(X) == 1 + a[0], X[0, 1] >= a[1] * y[0], y >= -1, y <= 2],
+    )
+    params = [C, a, w]
+    built = ParametricConic(prob, params, {}, unpack=[X, y])
+    built.save(tmp_path / "sdp.npz")
+    loaded = ParametricConic.load(tmp_path / "sdp.npz")
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        M = rng.normal(size=(3, 3))
+        C.value, a.value, w.value = M + M.T, rng.uniform(0.1, 1, 2), rng.uniform(0.1, 1)
+        ref = prob.solve(solver=cp.CLARABEL)
+        theta = np.concatenate([np.ravel(p.value, order="F") for p in params])
+        for data in (built, loaded):
+            sol = data.at(theta).solve(tol=1e-9)
+            assert sol.value == pytest.approx(ref, rel=1e-6, abs=1e-7)
+            assert sol.dual_value <= ref + 1e-7
+            Xv, yv = data.values(sol.x)
+            np.testing.assert_allclose(Xv, X.value, atol=1e-3)  # two solvers, two tolerances
+            np.testing.assert_array_equal(Xv, Xv.T)
+            np.testing.assert_allclose(yv, y.value, atol=1e-3)

@@ -1,14 +1,18 @@
 """The graph's convex relaxation: one perspective copy per vertex, flow conservation, and conservation
 of each interface (pose, its SO(2) second moments, the finger) across the edges.
 
-Compiled once with cvxpy Parameters (start pose, start finger, goal pose, which free-space pieces hold
-the start finger); a query only sets them and calls Clarabel.
+Written once with cvxpy Parameters (start pose, start finger, goal pose, which free-space pieces hold
+the start finger, each knot's arc of headings) and compiled to conic data on the planner's shared core
+(planner/conic.py), cached on disk: a query evaluates the data at its parameters and calls Clarabel.
+The T's compile takes a minute or more; a fresh process (a CLI plan, a worker) reads it in a second.
 """
 
 from __future__ import annotations
 
+import hashlib
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import cvxpy as cp
 import numpy as np
@@ -22,6 +26,9 @@ from lerobot_gcs_push.contact.face_contact import (
 from lerobot_gcs_push.contact.graph import ContactGraph
 from lerobot_gcs_push.contact.model import PushModel, reachable_windows
 from lerobot_gcs_push.contact.non_collision import RelaxedNonCollision, free_regions
+from lerobot_gcs_push.planner.conic import ParametricConic, cached
+
+CLARABEL_STATUS = {"Solved": "optimal", "AlmostSolved": "optimal_inaccurate"}
 
 
 def pose_vector(pose) -> np.ndarray:
@@ -72,11 +79,11 @@ class GraphRelaxation:
         self.model, self.graph, self.knots, self.max_step = model, graph, knots, max_step
         self.regions = free_regions(model)
         self.start = cp.Parameter(4)
-        self.start_moments = cp.Parameter((3, 3), symmetric=True)
+        self.start_moments = cp.Parameter((3, 3))
         self.start_q = cp.Parameter(2)
         self.allow = cp.Parameter(len(self.regions), nonneg=True)
         self.goal = cp.Parameter(4)
-        self.goal_moments = cp.Parameter((3, 3), symmetric=True)
+        self.goal_moments = cp.Parameter((3, 3))
         self.arc = ArcParameters() if window else None
         # Knot j of a plan (counted over the layers) is at most j steps from the start heading and
         # layers x (knots - 1) - j from the goal's; a plan ending early ends at the goal, inside every later
@@ -163,6 +170,12 @@ class GraphRelaxation:
         self.cost = sum(rc.cost for rc in self.contacts if rc is not None) + sum(fr.cost for fr in self.frees)
         self.cost = self.cost + sum(cc.cost for cc in self.copies.values())
         self.problem = cp.Problem(cp.Minimize(self.cost), cons)
+        self.params, self.variables = self.problem.parameters(), self.problem.variables()
+        settings = (model, graph, knots, per_region, rot_weight, rlt, window, edge_copies, max_step, knot_windows)
+        self.data = cached("contact-relaxation", _digest(settings), self._compile)
+
+    def _compile(self) -> ParametricConic:
+        return ParametricConic(self.problem, self.params, {}, cp.CLARABEL, unpack=self.variables)
 
     def step_cuts(self, layer: int) -> list[list[tuple]]:
         """The chord cuts of each step of a contact vertex in `layer`: the window's and the knots' own."""
@@ -201,25 +214,38 @@ class GraphRelaxation:
     def solve(self, start_pose, start_q, goal_pose, allow, window=None) -> RelaxationResult:
         self.set_query(start_pose, start_q, goal_pose, allow, window)
         t0 = time.perf_counter()
-        for attempt in range(2):  # about 1 solve in 30 raises a NumericalError that a re-solve clears
-            try:
-                self.problem.solve(solver=cp.CLARABEL)
-                break
-            except cp.error.SolverError:
-                if attempt:
-                    raise
+        theta = np.concatenate([np.ravel(np.asarray(p.value, float), order="F") for p in self.params])
+        conic = self.data.at(theta)
+        sol = conic.solve()
+        if not sol.solved:  # about 1 solve in 30 stops on a numerical error; a looser tolerance clears it
+            sol = conic.solve(tol=1e-6)
+        if not sol.solved:
+            raise cp.error.SolverError(f"Clarabel returned status {sol.status!r} on the contact relaxation")
+        for v, value in zip(self.variables, self.data.values(sol.x)):
+            v.value = v.project(value)
         dt = time.perf_counter() - t0
         return RelaxationResult(
-            # The solver's objective: cvxpy's `value` re-evaluates the expression, and a perspective cost
-            # at zero flow (quad_over_lin(0, 0)) reads as inf there. Clarabel stops at a 1e-7 relative gap.
-            bound=float(self.problem.solution.opt_val),
-            status=self.problem.status,
+            # The dual objective: a lower bound by weak duality, where the primal objective (what cvxpy
+            # reported) lies within the solver's tolerance of the optimum on either side.
+            bound=sol.dual_value,
+            status=CLARABEL_STATUS[sol.status],
             solve_time_s=dt,
             contact_flow=np.clip(self.phi_c.value, 0, 1),
             free_flow=np.clip(self.phi_f.value, 0, 1),
             target_flow=np.clip(self.phi_t.value, 0, 1),
             relaxation=self,
         )
+
+
+def _digest(settings: tuple) -> hashlib._Hash:
+    """What the program is made from: its settings (the model's geometry and physics among them, at full
+    precision) and the code that writes it."""
+    h = hashlib.sha256()
+    with np.printoptions(precision=17, threshold=10**9):
+        h.update(repr(settings).encode())
+    for source in sorted(Path(__file__).parent.glob("*.py")):
+        h.update(source.read_bytes())
+    return h
 
 
 def piece_range(graph: ContactGraph, piece: int, face) -> tuple[float, float]:

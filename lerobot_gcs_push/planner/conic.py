@@ -1,18 +1,23 @@
 """A cvxpy program's conic data taken once, then handed to Clarabel directly, query after query.
 
 cvxpy's per-solve work (applying parameters through its chain, building the solver's inputs, unpacking
-the solution) costs more than Clarabel's solve on programs this small. The programs here are DPP, so
-their conic data  min c.x + d  s.t.  A x + s = b, s in (zero, nonneg, second-order cones)  is affine in
-the parameters: `ParametricConic` evaluates it once at theta = 0 and once per unit vector of theta, and
-a query is a matrix-vector product. `Conic.fix` then removes variables with known values (the edges a
-query forbids, or all edges off a path): the subproblem is the same program, only smaller.
+the solution) costs more than Clarabel's solve on programs this small, and its compile of the contact
+planner's semidefinite programs takes a minute or more. The programs here are DPP, so their conic data
+min c.x + d  s.t.  A x + s = b, s in (zero, nonneg, second-order, PSD cones)  is affine in the
+parameters: `ParametricConic` evaluates it once at theta = 0 and once per unit vector of theta, keeps
+the parts that move (sparse: most entries do not), and a query is a sparse matrix-vector product.
+`Conic.fix` then removes variables with known values (the edges a query forbids, or all edges off a
+path): the subproblem is the same program, only smaller. `cached` keeps the data on disk.
 """
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import json
 import os
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import clarabel
@@ -22,6 +27,7 @@ import scipy.sparse as sp
 from cvxpy import settings as cvxpy_settings
 
 FEAS_TOL = 1e-9  # a row left without variables must hold on its constant to this
+CACHE_ENV = "LEROBOT_GCS_PUSH_CACHE"  # where conic data is kept between processes ("" : nowhere)
 
 
 class Infeasible(Exception):
@@ -34,6 +40,10 @@ class ConicSolution:
     value: float  # inf unless solved
     x: np.ndarray  # every variable of the program `fix` was called on (fixed ones at their values)
     solve_time_s: float
+    # The dual objective: by weak duality a lower bound on the optimum (up to the dual's feasibility
+    # tolerance), where the primal value is only an approximation of it from above or below.
+    dual_value: float = -np.inf
+    iterations: int = 0
 
     @property
     def solved(self) -> bool:
@@ -42,7 +52,9 @@ class ConicSolution:
 
 @dataclass
 class Conic:
-    """min c.x + d s.t. A x + s = b, s in zero^nz x nonneg^nn x SOC(soc[0]) x SOC(soc[1]) ..."""
+    """min c.x + d s.t. A x + s = b, s in zero^nz x nonneg^nn x SOC(soc[0]) x ... x PSD(psd[0]) x ...
+    (a PSD cone's rows: the upper triangle of an n x n matrix, column by column, off-diagonals times
+    sqrt 2, as cvxpy writes them for Clarabel)."""
 
     A: sp.csc_matrix
     b: np.ndarray
@@ -53,13 +65,14 @@ class Conic:
     soc: list[int]
     free: np.ndarray | None = None  # columns of the original program (None: this is it)
     fixed: np.ndarray | None = None  # the original program's x with the fixed values filled in
+    psd: list[int] = field(default_factory=list)
 
     def fix(self, values: np.ndarray, fixing: Fixing | None = None) -> Conic:
         """The program with the variables whose entry in `values` is not NaN fixed to it. `fixing`: the
         same variables' `Fixing`, computed once for programs of this sparsity pattern."""
         return (fixing or Fixing(self, ~np.isnan(values))).apply(self, values)
 
-    def solve(self) -> ConicSolution:
+    def solve(self, tol: float = 1e-7) -> ConicSolution:
         """Clarabel on this data, at tolerances 1e-7 (cvxpy passes its defaults, 1e-8). A new solver each
         time: reusing one through Clarabel's `update` saves its setup (a fifth of a relaxation's time),
         but where the relaxation's optimum is not unique its flows then differ from a fresh solve's (by
@@ -68,7 +81,7 @@ class Conic:
         settings = clarabel.DefaultSettings()
         settings.verbose = False
         # 1e-7 instead of Clarabel's 1e-8: plans 6 % faster, every reference cost unchanged to 1e-6.
-        settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = 1e-7
+        settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = tol
         solver = clarabel.DefaultSolver(sp.csc_matrix((n, n)), self.c, self.A, self.b, self.cones(), settings)
         sol = solver.solve()
         status = str(sol.status)
@@ -76,13 +89,16 @@ class Conic:
         full = x if self.free is None else _scatter(self.fixed, self.free, x)
         solved = status in ("Solved", "AlmostSolved")
         value = float(sol.obj_val) + self.d if solved else np.inf
-        return ConicSolution(status, value, full, float(sol.solve_time))
+        dual = float(sol.obj_val_dual) + self.d if solved else -np.inf
+        return ConicSolution(status, value, full, float(sol.solve_time), dual, int(sol.iterations))
 
     def cones(self) -> list:
         cones = [clarabel.ZeroConeT(self.zero)] if self.zero else []
         if self.nonneg:
             cones.append(clarabel.NonnegativeConeT(self.nonneg))
-        return cones + [clarabel.SecondOrderConeT(k) for k in self.soc]
+        return (
+            cones + [clarabel.SecondOrderConeT(k) for k in self.soc] + [clarabel.PSDTriangleConeT(k) for k in self.psd]
+        )
 
 
 class Fixing:
@@ -90,7 +106,8 @@ class Fixing:
     out from a program's sparsity pattern alone, so that it serves every program with that pattern
     (every query, for one set of dropped edges or one path): applying it is a gather of A's entries.
     Rows left without variables are dropped, after `apply` checks their constants against the cone
-    (raising `Infeasible`); a second-order cone keeps its rows while any of them has a variable."""
+    (raising `Infeasible`); a second-order cone keeps its rows while any of them has a variable, a PSD
+    cone always."""
 
     def __init__(self, pattern: Conic, fixed: np.ndarray):
         A, m = pattern.A, pattern.A.shape[0]
@@ -110,6 +127,8 @@ class Fixing:
                 self.soc.append(k)
             else:
                 self.empty_soc.append(cone)
+        rows.append(np.arange(start, m))  # the PSD cones, kept whole
+        self.psd = list(pattern.psd)
         self.rows = np.concatenate(rows).astype(int)
         self.zero, self.nonneg = len(rows[0]), len(rows[1])
         # Rows keep their order, so the surviving entries are already in CSC order.
@@ -139,6 +158,7 @@ class Fixing:
             soc=self.soc,
             free=base_free[self.free],
             fixed=base_fixed,
+            psd=self.psd,
         )
 
 
@@ -151,7 +171,10 @@ def _scatter(base: np.ndarray, where: np.ndarray, values: np.ndarray) -> np.ndar
 class ParametricConic:
     """The conic data of a DPP cvxpy `problem` as an affine function of its `params` (stacked in that
     order into theta), and where each of `variables` sits in x. `solver` (Clarabel or SCIP, which read
-    the same conic form) only decides which cvxpy chain produces it."""
+    the same conic form) only decides which cvxpy chain produces it. `unpack`: variables whose values
+    are read back from x (`values`) although cvxpy reformulates them (a symmetric matrix is stored as
+    its upper triangle): their entries as indices into x, found by unpacking x = 1, 2, ... through
+    cvxpy's own chain once."""
 
     def __init__(
         self,
@@ -159,37 +182,60 @@ class ParametricConic:
         params: list[cp.Parameter],
         variables: dict[str, cp.Variable],
         solver: str = cp.CLARABEL,
+        unpack: list[cp.Variable] = (),
     ):
-        data, _, _ = problem.get_problem_data(solver, ignore_dpp=False)
+        data, chain, inverse = problem.get_problem_data(solver, ignore_dpp=False)
         self.boolean = np.zeros(data["param_prob"].x.size, bool)  # binary variables, as a mask over x
         self.boolean[list(data.get(cvxpy_settings.BOOL_IDX, []))] = True
         prog, dims = data["param_prob"], data["dims"]
-        if dims.exp or dims.psd or dims.p3d or prog.P is not None:
-            raise ValueError("only zero, nonnegative and second-order cones with a linear objective")
+        if dims.exp or dims.p3d or prog.P is not None:
+            raise ValueError("only zero, nonnegative, second-order and PSD cones with a linear objective")
         self.zero, self.nonneg, self.soc = int(dims.zero), int(dims.nonneg), [int(k) for k in dims.soc]
+        self.psd = [int(k) for k in dims.psd]
         self.columns = {
             name: slice(prog.var_id_to_col[v.id], prog.var_id_to_col[v.id] + v.size) for name, v in variables.items()
         }
         self.sizes = [p.size for p in params]
-        probes = [np.zeros(sum(self.sizes))] + list(np.eye(sum(self.sizes)))
-        c, d, A, b = zip(*(prog.apply_parameters(self._values(params, t), keep_zeros=True) for t in probes))
-        self.shape = A[0].shape
-        # One sparsity pattern for every theta: the union of the probes', in CSC order.
-        coo = [a.tocoo() for a in A]
-        keys = [a.col.astype(np.int64) * self.shape[0] + a.row for a in coo]
-        pattern = np.unique(np.concatenate(keys))
-        vals = np.zeros((len(pattern), len(probes)))
-        for j, (k, a) in enumerate(zip(keys, coo)):
-            np.add.at(vals[:, j], np.searchsorted(pattern, k), a.data)
+        p = sum(self.sizes)
+        # One probe at a time (the contact planner's programs have ~100 parameters and ~10^5 entries):
+        # the entries that differ from theta = 0, sparse.
+        c0, d0, A0, b0 = prog.apply_parameters(self._values(params, np.zeros(p)), keep_zeros=True)
+        self.shape = A0.shape
+        keys0, vals0 = _entries(A0)
+        dA, db, dc, dd = [], [], [], []
+        for j in range(p):
+            c, d, A, b = prog.apply_parameters(self._values(params, np.eye(1, p, j)[0]), keep_zeros=True)
+            dA.append(_difference(keys0, vals0, *_entries(A)))
+            db.append(_sparse_column(np.asarray(b, float) - b0))
+            dc.append(_sparse_column(np.asarray(c, float) - c0))
+            dd.append(float(d) - float(d0))
+        # One sparsity pattern for every theta: theta = 0's and every probe's changes, in CSC order.
+        pattern = np.unique(np.concatenate([keys0] + [k for k, _ in dA]))
         self.indices = (pattern % self.shape[0]).astype(np.int32)
         self.indptr = np.searchsorted(pattern // self.shape[0], np.arange(self.shape[1] + 1)).astype(np.int32)
         # Clarabel's convention is cvxpy's with A negated (ConicSolver.apply).
-        self.A_map = _affine(-vals)
-        self.b_map = _affine(np.stack(b, axis=1))
-        self.c_map = _affine(np.stack(c, axis=1))
-        self.d_map = _affine(np.array(d, float)[None])[0]
+        self.A_map = _affine_map(
+            len(pattern),
+            [(np.searchsorted(pattern, keys0), -vals0)],
+            [(np.searchsorted(pattern, k), -v) for k, v in dA],
+        )
+        self.b_map = _affine_map(self.shape[0], [_sparse_column(np.asarray(b0, float))], db)
+        self.c_map = _affine_map(self.shape[1], [_sparse_column(np.asarray(c0, float))], dc)
+        self.d_map = np.array([float(d0), *dd])
+        self.unpacked = _unpacked(problem, chain, inverse, self.shape[1], list(unpack))
 
-    _ARRAYS = ("boolean", "indices", "indptr", "A_map", "b_map", "c_map", "d_map")
+    _ARRAYS = ("boolean", "indices", "indptr", "d_map")
+    _SPARSE = ("A_map", "b_map", "c_map")
+
+    @property
+    def n(self) -> int:
+        """The number of the program's variables (x's length)."""
+        return self.shape[1]
+
+    def values(self, x: np.ndarray) -> list[np.ndarray]:
+        """The `unpack` variables' values at x, in their order and shapes (entries cvxpy dropped: 0)."""
+        padded = np.r_[x, 0.0]
+        return [padded[idx] for idx in self.unpacked]
 
     def save(self, path: Path) -> None:
         """Write to `path` (.npz) atomically: processes that load it meanwhile see the old file or this."""
@@ -197,25 +243,44 @@ class ParametricConic:
             "zero": self.zero,
             "nonneg": self.nonneg,
             "soc": self.soc,
+            "psd": self.psd,
             "shape": list(self.shape),
             "sizes": self.sizes,
             "columns": {k: [v.start, v.stop] for k, v in self.columns.items()},
+            "unpacked": [list(u.shape) for u in self.unpacked],
         }
+        arrays = {k: getattr(self, k) for k in self._ARRAYS}
+        for k in self._SPARSE:
+            m = getattr(self, k)
+            arrays.update({f"{k}_data": m.data, f"{k}_indices": m.indices, f"{k}_indptr": m.indptr})
+            meta[f"{k}_shape"] = list(m.shape)
+        if self.unpacked:
+            arrays["unpacked"] = np.concatenate([u.ravel() for u in self.unpacked])
         tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
         with open(tmp, "wb") as f:
-            np.savez(f, meta=np.array(json.dumps(meta)), **{k: getattr(self, k) for k in self._ARRAYS})
+            np.savez(f, meta=np.array(json.dumps(meta)), **arrays)
         os.replace(tmp, path)
 
     @classmethod
     def load(cls, path: Path) -> ParametricConic:
         out = cls.__new__(cls)
         with np.load(path) as f:
+            meta = json.loads(str(f["meta"]))
             for k in cls._ARRAYS:
                 setattr(out, k, f[k])
-            meta = json.loads(str(f["meta"]))
+            for k in cls._SPARSE:
+                parts = (f[f"{k}_data"], f[f"{k}_indices"], f[f"{k}_indptr"])
+                setattr(out, k, sp.csr_matrix(parts, shape=tuple(meta[f"{k}_shape"])))
+            flat = f["unpacked"] if meta["unpacked"] else np.zeros(0, int)
         out.zero, out.nonneg, out.soc, out.sizes = meta["zero"], meta["nonneg"], meta["soc"], meta["sizes"]
+        out.psd = meta["psd"]
         out.shape = tuple(meta["shape"])
         out.columns = {k: slice(*v) for k, v in meta["columns"].items()}
+        out.unpacked, i = [], 0
+        for shape in meta["unpacked"]:
+            size = int(np.prod(shape))
+            out.unpacked.append(flat[i : i + size].reshape(shape))
+            i += size
         return out
 
     @staticmethod
@@ -229,11 +294,92 @@ class ParametricConic:
     def at(self, theta: np.ndarray) -> Conic:
         t = np.concatenate([[1.0], np.asarray(theta, float)])
         A = sp.csc_matrix((self.A_map @ t, self.indices, self.indptr), shape=self.shape)
-        return Conic(A, self.b_map @ t, self.c_map @ t, float(self.d_map @ t), self.zero, self.nonneg, self.soc)
+        return Conic(
+            A, self.b_map @ t, self.c_map @ t, float(self.d_map @ t), self.zero, self.nonneg, self.soc, psd=self.psd
+        )
 
 
-def _affine(probes: np.ndarray) -> np.ndarray:
-    """Columns [f(0), f(e_1), ...] -> [f(0), f(e_1) - f(0), ...]: f(theta) = M @ [1, theta]."""
-    out = probes.copy()
-    out[:, 1:] -= probes[:, :1]
+def cached(name: str, digest: hashlib._Hash, build: Callable[[], ParametricConic]) -> ParametricConic:
+    """`build()`'s conic data, kept on disk under `name` and `digest` (which must cover everything the
+    program is made from: its data, the code that writes it, cvxpy's version), so that a fresh planner
+    (every CLI call, every worker process) reads it instead of compiling."""
+    root = os.environ.get(CACHE_ENV, str(Path.home() / ".cache" / "lerobot_gcs_push"))
+    digest = digest.copy()
+    digest.update(f"{cp.__version__} {Path(__file__).read_bytes()!r}".encode())
+    path = Path(root) / f"{name}-{digest.hexdigest()[:24]}.npz" if root else None
+    if path is not None and path.exists():
+        try:
+            return ParametricConic.load(path)
+        except (OSError, ValueError, KeyError):  # unreadable (truncated by a full disk, say): rebuild it
+            pass
+    data = build()
+    if path is not None:
+        with contextlib.suppress(OSError):  # a read-only home: no cache, only a slower start
+            path.parent.mkdir(parents=True, exist_ok=True)
+            data.save(path)
+    return data
+
+
+def _entries(A) -> tuple[np.ndarray, np.ndarray]:
+    """A sparse matrix's entries as (column-major keys, values), sorted by key."""
+    coo = A.tocoo()
+    keys = coo.col.astype(np.int64) * A.shape[0] + coo.row
+    order = np.argsort(keys, kind="stable")
+    return keys[order], np.asarray(coo.data, float)[order]
+
+
+def _difference(keys0, vals0, keys, vals) -> tuple[np.ndarray, np.ndarray]:
+    """The entries of (keys, vals) - (keys0, vals0) that are not zero."""
+    if len(keys) == len(keys0) and np.array_equal(keys, keys0):
+        diff, at = vals - vals0, keys0
+    else:
+        at = np.union1d(keys0, keys)
+        diff = np.zeros(len(at))
+        diff[np.searchsorted(at, keys)] += vals
+        diff[np.searchsorted(at, keys0)] -= vals0
+    nz = diff != 0
+    return at[nz], diff[nz]
+
+
+def _sparse_column(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    nz = np.flatnonzero(v)
+    return nz, v[nz]
+
+
+def _affine_map(rows: int, base: list[tuple], probes: list[tuple]) -> sp.csr_matrix:
+    """[f(0), f(e_1) - f(0), ...] as a sparse (rows x 1 + len(probes)) matrix: f(theta) = M @ [1, theta]."""
+    cols = base + probes
+    r = np.concatenate([np.asarray(i, np.int64) for i, _ in cols])
+    v = np.concatenate([np.asarray(x, float) for _, x in cols])
+    c = np.concatenate([np.full(len(i), j) for j, (i, _) in enumerate(cols)])
+    return sp.csr_matrix((v, (r, c)), shape=(rows, len(cols)))
+
+
+class _Unit:
+    """A solver result in Clarabel's shape whose x is 1, 2, ..., n: unpacked through cvxpy's chain, each
+    variable's entries read off which entry of x they are."""
+
+    def __init__(self, n: int):
+        self.status, self.obj_val, self.solve_time, self.iterations = "Solved", 0.0, 0.0, 0
+        self.x, self.z, self.s = np.arange(1.0, n + 1.0), None, None
+
+
+def _unpacked(problem: cp.Problem, chain, inverse, n: int, variables: list) -> list[np.ndarray]:
+    if not variables:
+        return []
+    saved = [v.value for v in problem.variables()]
+    for inv in inverse:  # the solver's part reads the options of a solve that did not happen
+        if hasattr(inv, "solver_options") and inv.solver_options is None:
+            inv.solver_options = {}
+    problem.unpack_results(_Unit(n), chain, inverse)
+    out = []
+    for v in variables:
+        val = np.zeros(v.shape) if v.value is None else np.asarray(v.value, float)
+        idx = np.rint(val).astype(np.int64) - 1
+        if np.any(np.abs(val - (idx + 1)) > 1e-9) or np.any(idx < -1) or np.any(idx >= n):
+            raise ValueError(f"{v.name()} is not a selection of the conic variables: cannot unpack it directly")
+        idx[idx < 0] = n  # not in the program: reads the padding 0
+        out.append(idx)
+    for v, val in zip(problem.variables(), saved):
+        v.value = val
     return out

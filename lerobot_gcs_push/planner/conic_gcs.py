@@ -13,9 +13,7 @@ A query sets theta = [source, goal, allowed] in the relaxation's conic data (con
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
-import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,9 +21,8 @@ from pathlib import Path
 import cvxpy as cp
 import numpy as np
 
-from lerobot_gcs_push.planner import conic as conic_module
 from lerobot_gcs_push.planner import gcs, transcription
-from lerobot_gcs_push.planner.conic import Conic, Fixing, Infeasible, ParametricConic
+from lerobot_gcs_push.planner.conic import Conic, Fixing, Infeasible, ParametricConic, cached
 from lerobot_gcs_push.planner.gcs import FlowSolution, GcsProgram, SolverError, free_coords
 from lerobot_gcs_push.planner.graph import ModeGraph
 from lerobot_gcs_push.planner.restriction import PathSolution
@@ -39,37 +36,23 @@ class ConicQuery:
     flows: FlowSolution
 
 
-CACHE_ENV = "LEROBOT_GCS_PUSH_CACHE"  # where conic data is kept between processes ("" : nowhere)
-
-
 def parametric(graph: ModeGraph, integer: bool = False) -> ParametricConic:
     """The GCS program's conic data: the relaxation (Clarabel) or the MICP with its two-cycle cuts
-    (SCIP). cvxpy's compilation takes most of a second, so the result is cached on disk, keyed by the
-    graph's data, the code that turns it into a program and cvxpy's version: a fresh planner (every
-    CLI call, every worker process) reads it in milliseconds."""
-    path = _cache_path(graph, integer)
-    if path is not None and path.exists():
-        try:
-            return ParametricConic.load(path)
-        except (OSError, ValueError, KeyError):  # unreadable (truncated by a full disk, say): rebuild it
-            pass
-    prog = GcsProgram(graph, integer=integer, two_cycles=integer)
-    variables = {"y": prog.y, **prog.variables}
-    params = [prog.src, prog.goal, prog.allowed]
-    data = ParametricConic(prog.problem, params, variables, cp.SCIP if integer else cp.CLARABEL)
-    if path is not None:
-        with contextlib.suppress(OSError):  # a read-only home: no cache, only a slower start
-            path.parent.mkdir(parents=True, exist_ok=True)
-            data.save(path)
-    return data
+    (SCIP). cvxpy's compilation takes most of a second, so the result is cached on disk (conic.cached),
+    keyed by the graph's data and the code that turns it into a program."""
+
+    def build() -> ParametricConic:
+        prog = GcsProgram(graph, integer=integer, two_cycles=integer)
+        variables = {"y": prog.y, **prog.variables}
+        params = [prog.src, prog.goal, prog.allowed]
+        return ParametricConic(prog.problem, params, variables, cp.SCIP if integer else cp.CLARABEL)
+
+    return cached(f"gcs-{'micp' if integer else 'relaxation'}", _digest(graph, integer), build)
 
 
-def _cache_path(graph: ModeGraph, integer: bool) -> Path | None:
-    root = os.environ.get(CACHE_ENV, str(Path.home() / ".cache" / "lerobot_gcs_push"))
-    if not root:
-        return None
-    h = hashlib.sha256(f"{integer} {cp.__version__}".encode())
-    for source in (gcs.__file__, transcription.__file__, conic_module.__file__, __file__):
+def _digest(graph: ModeGraph, integer: bool):
+    h = hashlib.sha256(f"{integer}".encode())
+    for source in (gcs.__file__, transcription.__file__, __file__):
         h.update(Path(source).read_bytes())
     for v in graph.vertices:
         h.update(f"{v.name} {v.kind} {v.dim} {v.k} {v.pin_cols}".encode())
@@ -79,7 +62,7 @@ def _cache_path(graph: ModeGraph, integer: bool) -> Path | None:
         h.update(f"{e.u} {e.v}".encode())
         for a in (e.Mu, e.Mv, e.h):
             h.update(np.ascontiguousarray(a, float).tobytes())
-    return Path(root) / f"gcs-{'micp' if integer else 'relaxation'}-{h.hexdigest()[:24]}.npz"
+    return h
 
 
 class EdgeColumns:
@@ -87,7 +70,7 @@ class EdgeColumns:
 
     def __init__(self, graph: ModeGraph, data: ParametricConic):
         cols = data.columns
-        self.n = len(data.c_map)
+        self.n = data.n
         self.y = np.arange(cols["y"].start, cols["y"].stop)
         # Per edge, the columns of its flow and of its copies' variables (those not y * parameter).
         self.edge = [
