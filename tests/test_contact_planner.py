@@ -191,19 +191,19 @@ def test_relaxation_on_the_conic_core_is_cvxpys_program(planner):
     for pose, finger in STARTS[:2]:
         p, q, goal, allow = planner.query(pose, finger)
         res = relax.solve(p, q, goal, allow, planner.window(p, goal))
+        primal = float(relax.problem.objective.value)
         worst = max(float(np.max(c.violation(), initial=0.0)) for c in relax.problem.constraints)
         assert worst < 1e-5
-        assert float(relax.problem.objective.value) == pytest.approx(res.bound, rel=1e-5)
+        assert primal == pytest.approx(res.bound, rel=1e-5)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             reference = relax.problem.solve(solver=cp.CLARABEL)
         assert res.bound == pytest.approx(reference, rel=1e-5)
-        assert res.bound <= reference * (1 + 1e-6)
 
 
 def test_a_fresh_contact_planner_reads_its_compiled_relaxation(monkeypatch, tmp_path):
     """The first planner of a machine compiles the relaxation and keeps it; a fresh one (another CLI call,
-    another worker) compiles nothing and plans the same plan."""
+    another worker) compiles nothing and plans the same plan; a damaged file is compiled again."""
     import cvxpy as cp
 
     from lerobot_gcs_push.planner.conic import CACHE_ENV
@@ -223,8 +223,13 @@ def test_a_fresh_contact_planner_reads_its_compiled_relaxation(monkeypatch, tmp_
     second = ContactPlanner(SCENE).plan(pose, finger)
     assert len(calls) == 1
     assert second.cost == first.cost and second.lower_bound == first.lower_bound
+    (cache,) = tmp_path.glob("contact-relaxation-*.npz")
+    cache.write_bytes(cache.read_bytes()[:1000])  # cut short, as by a full disk: compiled and written again
+    assert ContactPlanner(SCENE).plan(pose, finger).cost == first.cost
+    assert len(calls) == 2
+    assert ContactPlanner(SCENE).plan(pose, finger).lower_bound == first.lower_bound and len(calls) == 2
     ContactPlanner(SCENE, rolling=False).warm_up()  # another model: its own program
-    assert len(calls) == 2 and len(list(tmp_path.glob("contact-relaxation-*.npz"))) == 2
+    assert len(calls) == 3 and len(list(tmp_path.glob("contact-relaxation-*.npz"))) == 2
 
 
 def test_near_goal_start_is_rescued_by_the_fallback(planner):

@@ -172,17 +172,17 @@ def test_the_cache_tells_graphs_apart(compilations, tmp_path):
 
 
 def test_semidefinite_program_and_its_unpacked_values_match_cvxpy(tmp_path):
-    """A small SDP with a symmetric matrix variable and parameters in A, b and c: the conic data taken
-    once (and again from its file), evaluated at a new theta and solved by Clarabel directly, gives
-    cvxpy's optimum, its symmetric matrix entry by entry, and a dual bound below the optimum."""
+    """A small SDP with a symmetric matrix variable, a constant in the objective and parameters in A, b
+    and c: the conic data taken once (and again from its file), evaluated at a new theta and solved by
+    Clarabel directly, gives cvxpy's optimum as its primal and its dual objective, its symmetric matrix
+    entry by entry, and with one variable fixed, cvxpy's optimum with that value as a constraint."""
     X, y = cp.Variable((3, 3), symmetric=True), cp.Variable(2)
     C, a, w = cp.Parameter((3, 3)), cp.Parameter(2), cp.Parameter(nonneg=True)
-    prob = cp.Problem(
-        cp.Minimize(cp.sum(cp.multiply(C, X)) + w * cp.sum(y)),
-        [X >> 0, cp.trace(X) == 1 + a[0], X[0, 1] >= a[1] * y[0], y >= -1, y <= 2],
-    )
+    objective = cp.sum(cp.multiply(C, X)) + w * (y[0] - 2 * y[1]) + 3.0  # y's optimum: (-1, 2), told apart
+    cons = [X >> 0, cp.trace(X) == 1 + a[0], X[0, 1] >= a[1] * y[0], y >= -1, y <= 2]
+    prob = cp.Problem(cp.Minimize(objective), cons)
     params = [C, a, w]
-    built = ParametricConic(prob, params, {}, unpack=[X, y])
+    built = ParametricConic(prob, params, {"y": y}, unpack=[X, y])
     built.save(tmp_path / "sdp.npz")
     loaded = ParametricConic.load(tmp_path / "sdp.npz")
     rng = np.random.default_rng(3)
@@ -190,12 +190,28 @@ def test_semidefinite_program_and_its_unpacked_values_match_cvxpy(tmp_path):
         M = rng.normal(size=(3, 3))
         C.value, a.value, w.value = M + M.T, rng.uniform(0.1, 1, 2), rng.uniform(0.1, 1)
         ref = prob.solve(solver=cp.CLARABEL)
+        fixed_ref = cp.Problem(prob.objective, cons + [y[1] == 0.5]).solve(solver=cp.CLARABEL)
         theta = np.concatenate([np.ravel(p.value, order="F") for p in params])
         for data in (built, loaded):
             sol = data.at(theta).solve(tol=1e-9)
-            assert sol.value == pytest.approx(ref, rel=1e-6, abs=1e-7)
-            assert sol.dual_value <= ref + 1e-7
+            assert sol.value == pytest.approx(ref, rel=1e-6)
+            assert sol.dual_value == pytest.approx(ref, rel=1e-6) and sol.dual_value <= sol.value + 1e-9
             Xv, yv = data.values(sol.x)
             np.testing.assert_allclose(Xv, X.value, atol=1e-3)  # two solvers, two tolerances
             np.testing.assert_array_equal(Xv, Xv.T)
-            np.testing.assert_allclose(yv, y.value, atol=1e-3)
+            np.testing.assert_allclose(yv, [-1.0, 2.0], atol=1e-6)
+            values = np.full(data.n, np.nan)
+            values[data.columns["y"].start + 1] = 0.5
+            assert data.at(theta).fix(values).solve(tol=1e-9).value == pytest.approx(fixed_ref, rel=1e-6)
+
+
+def test_conic_data_refuses_programs_it_would_get_wrong():
+    """A program that is not DPP would have its parameters' values baked in; a symmetric Parameter is
+    replaced inside cvxpy by one the caller cannot set: both are refused, with the reason."""
+    x, p = cp.Variable(2), cp.Parameter(2)
+    p.value = np.ones(2)
+    with pytest.raises(ValueError, match="not DPP"):
+        ParametricConic(cp.Problem(cp.Minimize(cp.sum(x)), [x >= p * p]), [p], {})
+    S, P = cp.Variable((2, 2), symmetric=True), cp.Parameter((2, 2), symmetric=True)
+    with pytest.raises(ValueError, match="reformulated"):
+        ParametricConic(cp.Problem(cp.Minimize(cp.trace(S)), [S >> P]), [P], {})

@@ -9,7 +9,6 @@ The T's compile takes a minute or more; a fresh process (a CLI plan, a worker) r
 
 from __future__ import annotations
 
-import hashlib
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +27,10 @@ from lerobot_gcs_push.contact.model import PushModel, reachable_windows
 from lerobot_gcs_push.contact.non_collision import RelaxedNonCollision, free_regions
 from lerobot_gcs_push.planner.conic import ParametricConic, cached
 
+# The modules that write the program (the planner's rounding and expert do not change it).
+PROGRAM_SOURCES = [
+    str(Path(__file__).with_name(f"{m}.py")) for m in ("relaxation", "face_contact", "non_collision", "model", "graph")
+]
 CLARABEL_STATUS = {"Solved": "optimal", "AlmostSolved": "optimal_inaccurate"}
 
 
@@ -172,7 +175,13 @@ class GraphRelaxation:
         self.problem = cp.Problem(cp.Minimize(self.cost), cons)
         self.params, self.variables = self.problem.parameters(), self.problem.variables()
         settings = (model, graph, knots, per_region, rot_weight, rlt, window, edge_copies, max_step, knot_windows)
-        self.data = cached("contact-relaxation", _digest(settings), self._compile)
+        key = _key(settings)
+        self.data = cached("contact-relaxation", key, PROGRAM_SOURCES, self._compile, self._fits)
+
+    def _fits(self, data: ParametricConic) -> bool:
+        return data.sizes == [p.size for p in self.params] and [u.shape for u in data.unpacked] == [
+            v.shape for v in self.variables
+        ]
 
     def _compile(self) -> ParametricConic:
         return ParametricConic(self.problem, self.params, {}, cp.CLARABEL, unpack=self.variables)
@@ -221,12 +230,12 @@ class GraphRelaxation:
             sol = conic.solve(tol=1e-6)
         if not sol.solved:
             raise cp.error.SolverError(f"Clarabel returned status {sol.status!r} on the contact relaxation")
-        for v, value in zip(self.variables, self.data.values(sol.x)):
+        for v, value in zip(self.variables, self.data.values(sol.x), strict=True):
             v.value = v.project(value)
         dt = time.perf_counter() - t0
         return RelaxationResult(
-            # The dual objective: a lower bound by weak duality, where the primal objective (what cvxpy
-            # reported) lies within the solver's tolerance of the optimum on either side.
+            # The dual objective: a lower bound by weak duality, where the primal objective lies within
+            # the solver's tolerance of the optimum on either side.
             bound=sol.dual_value,
             status=CLARABEL_STATUS[sol.status],
             solve_time_s=dt,
@@ -237,15 +246,10 @@ class GraphRelaxation:
         )
 
 
-def _digest(settings: tuple) -> hashlib._Hash:
-    """What the program is made from: its settings (the model's geometry and physics among them, at full
-    precision) and the code that writes it."""
-    h = hashlib.sha256()
-    with np.printoptions(precision=17, threshold=10**9):
-        h.update(repr(settings).encode())
-    for source in sorted(Path(__file__).parent.glob("*.py")):
-        h.update(source.read_bytes())
-    return h
+def _key(settings: tuple) -> bytes:
+    """The program's settings, the model's geometry and physics among them, every float as it is."""
+    with np.printoptions(floatmode="unique", threshold=10**9):
+        return repr(settings).encode()
 
 
 def piece_range(graph: ContactGraph, piece: int, face) -> tuple[float, float]:

@@ -16,6 +16,7 @@ import contextlib
 import hashlib
 import json
 import os
+import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,6 +26,7 @@ import cvxpy as cp
 import numpy as np
 import scipy.sparse as sp
 from cvxpy import settings as cvxpy_settings
+from cvxpy.lin_ops.lin_op import CONSTANT_ID
 
 FEAS_TOL = 1e-9  # a row left without variables must hold on its constant to this
 CACHE_ENV = "LEROBOT_GCS_PUSH_CACHE"  # where conic data is kept between processes ("" : nowhere)
@@ -41,9 +43,9 @@ class ConicSolution:
     x: np.ndarray  # every variable of the program `fix` was called on (fixed ones at their values)
     solve_time_s: float
     # The dual objective: by weak duality a lower bound on the optimum (up to the dual's feasibility
-    # tolerance), where the primal value is only an approximation of it from above or below.
+    # tolerance, 1e-7 when Solved, Clarabel's reduced ~5e-5 when AlmostSolved), where the primal value
+    # only approximates the optimum from either side.
     dual_value: float = -np.inf
-    iterations: int = 0
 
     @property
     def solved(self) -> bool:
@@ -73,7 +75,7 @@ class Conic:
         return (fixing or Fixing(self, ~np.isnan(values))).apply(self, values)
 
     def solve(self, tol: float = 1e-7) -> ConicSolution:
-        """Clarabel on this data, at tolerances 1e-7 (cvxpy passes its defaults, 1e-8). A new solver each
+        """Clarabel on this data, at tolerances `tol` (cvxpy passes its defaults, 1e-8). A new solver each
         time: reusing one through Clarabel's `update` saves its setup (a fifth of a relaxation's time),
         but where the relaxation's optimum is not unique its flows then differ from a fresh solve's (by
         up to 0.26 on 120 queries), and a plan would depend on what the planner solved before."""
@@ -90,7 +92,7 @@ class Conic:
         solved = status in ("Solved", "AlmostSolved")
         value = float(sol.obj_val) + self.d if solved else np.inf
         dual = float(sol.obj_val_dual) + self.d if solved else -np.inf
-        return ConicSolution(status, value, full, float(sol.solve_time), dual, int(sol.iterations))
+        return ConicSolution(status, value, full, float(sol.solve_time), dual)
 
     def cones(self) -> list:
         cones = [clarabel.ZeroConeT(self.zero)] if self.zero else []
@@ -184,7 +186,12 @@ class ParametricConic:
         solver: str = cp.CLARABEL,
         unpack: list[cp.Variable] = (),
     ):
+        if not problem.is_dpp():  # cvxpy would bake the parameters' values in: every query the same program
+            raise ValueError("the program is not DPP: its conic data is not affine in its parameters")
         data, chain, inverse = problem.get_problem_data(solver, ignore_dpp=False)
+        unknown = set(data["param_prob"].param_id_to_col) - {p.id for p in params} - {CONSTANT_ID}
+        if unknown:  # a symmetric or diagonal Parameter is replaced by a reduced one: declare it plain
+            raise ValueError("cvxpy reformulated some parameters (symmetric=True or diag=True?): declare them plain")
         self.boolean = np.zeros(data["param_prob"].x.size, bool)  # binary variables, as a mask over x
         self.boolean[list(data.get(cvxpy_settings.BOOL_IDX, []))] = True
         prog, dims = data["param_prob"], data["dims"]
@@ -256,9 +263,14 @@ class ParametricConic:
             meta[f"{k}_shape"] = list(m.shape)
         if self.unpacked:
             arrays["unpacked"] = np.concatenate([u.ravel() for u in self.unpacked])
-        tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
-        with open(tmp, "wb") as f:
-            np.savez(f, meta=np.array(json.dumps(meta)), **arrays)
+        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f"{path.name}.", suffix=".tmp", delete=False) as f:
+            tmp = Path(f.name)
+            try:
+                np.savez(f, meta=np.array(json.dumps(meta)), **arrays)
+            except BaseException:
+                f.close()
+                tmp.unlink(missing_ok=True)
+                raise
         os.replace(tmp, path)
 
     @classmethod
@@ -299,19 +311,28 @@ class ParametricConic:
         )
 
 
-def cached(name: str, digest: hashlib._Hash, build: Callable[[], ParametricConic]) -> ParametricConic:
-    """`build()`'s conic data, kept on disk under `name` and `digest` (which must cover everything the
-    program is made from: its data, the code that writes it, cvxpy's version), so that a fresh planner
-    (every CLI call, every worker process) reads it instead of compiling."""
-    root = os.environ.get(CACHE_ENV, str(Path.home() / ".cache" / "lerobot_gcs_push"))
-    digest = digest.copy()
-    digest.update(f"{cp.__version__} {Path(__file__).read_bytes()!r}".encode())
-    path = Path(root) / f"{name}-{digest.hexdigest()[:24]}.npz" if root else None
+def cached(
+    name: str, key: bytes, sources: list[str], build: Callable[[], ParametricConic], check=None
+) -> ParametricConic:
+    """`build()`'s conic data, kept on disk under `name` and a digest of `key` (the program's data), of
+    `sources` (the modules that write it), of this module and of cvxpy's version, so that a fresh planner
+    (every CLI call, every worker process) reads it instead of compiling. `check(data)` vets what is
+    read (its sizes against the program's); a file that fails it, or cannot be read, is built again."""
+    h = hashlib.sha256(key)
+    for source in [*sources, __file__]:
+        h.update(Path(source).read_bytes())
+    h.update(cp.__version__.encode())
+    root = os.environ[CACHE_ENV] if CACHE_ENV in os.environ else str(Path.home() / ".cache" / "lerobot_gcs_push")
+    path = Path(root) / f"{name}-{h.hexdigest()[:24]}.npz" if root else None
     if path is not None and path.exists():
         try:
-            return ParametricConic.load(path)
-        except (OSError, ValueError, KeyError):  # unreadable (truncated by a full disk, say): rebuild it
+            data = ParametricConic.load(path)
+            if check is None or check(data):
+                return data
+        except Exception:  # truncated by a full disk, say: zipfile and numpy raise errors of their own
             pass
+        with contextlib.suppress(OSError):
+            path.unlink()
     data = build()
     if path is not None:
         with contextlib.suppress(OSError):  # a read-only home: no cache, only a slower start
@@ -335,8 +356,8 @@ def _difference(keys0, vals0, keys, vals) -> tuple[np.ndarray, np.ndarray]:
     else:
         at = np.union1d(keys0, keys)
         diff = np.zeros(len(at))
-        diff[np.searchsorted(at, keys)] += vals
-        diff[np.searchsorted(at, keys0)] -= vals0
+        np.add.at(diff, np.searchsorted(at, keys), vals)
+        np.add.at(diff, np.searchsorted(at, keys0), -vals0)
     nz = diff != 0
     return at[nz], diff[nz]
 

@@ -13,10 +13,8 @@ A query sets theta = [source, goal, allowed] in the relaxation's conic data (con
 
 from __future__ import annotations
 
-import hashlib
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import cvxpy as cp
 import numpy as np
@@ -47,22 +45,21 @@ def parametric(graph: ModeGraph, integer: bool = False) -> ParametricConic:
         params = [prog.src, prog.goal, prog.allowed]
         return ParametricConic(prog.problem, params, variables, cp.SCIP if integer else cp.CLARABEL)
 
-    return cached(f"gcs-{'micp' if integer else 'relaxation'}", _digest(graph, integer), build)
+    sources = [gcs.__file__, transcription.__file__, __file__]
+    return cached(f"gcs-{'micp' if integer else 'relaxation'}", _key(graph, integer), sources, build)
 
 
-def _digest(graph: ModeGraph, integer: bool):
-    h = hashlib.sha256(f"{integer}".encode())
-    for source in (gcs.__file__, transcription.__file__, __file__):
-        h.update(Path(source).read_bytes())
+def _key(graph: ModeGraph, integer: bool) -> bytes:
+    parts = [f"{integer}".encode()]
     for v in graph.vertices:
-        h.update(f"{v.name} {v.kind} {v.dim} {v.k} {v.pin_cols}".encode())
+        parts.append(f"{v.name} {v.kind} {v.dim} {v.k} {v.pin_cols}".encode())
         for a in (v.A, v.c, v.D, v.g, v.pin_S):
-            h.update(b"-" if a is None else np.ascontiguousarray(a, float).tobytes())
+            parts.append(b"-" if a is None else np.ascontiguousarray(a, float).tobytes())
     for e in graph.edges:
-        h.update(f"{e.u} {e.v}".encode())
+        parts.append(f"{e.u} {e.v}".encode())
         for a in (e.Mu, e.Mv, e.h):
-            h.update(np.ascontiguousarray(a, float).tobytes())
-    return h
+            parts.append(np.ascontiguousarray(a, float).tobytes())
+    return b"|".join(parts)
 
 
 class EdgeColumns:
