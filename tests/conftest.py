@@ -1,6 +1,8 @@
 import os
 import tempfile
 
+import pytest
+
 # Tests never reach the network, and figures render off-screen.
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 os.environ.setdefault("MPLBACKEND", "Agg")
@@ -29,3 +31,23 @@ def kill_when(cmd: list[str], ready, timeout_s: float = 300.0) -> None:
         time.sleep(0.1)
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
+
+
+@pytest.fixture
+def compilations(monkeypatch, tmp_path):
+    """Calls to cvxpy's one entry point to compilation, `Problem.get_problem_data`, with the planner's
+    cache of conic data in an empty directory."""
+    import cvxpy as cp
+
+    from lerobot_gcs_push.planner.conic import CACHE_ENV
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    calls = []
+    original = cp.Problem.get_problem_data
+
+    def counting(self, *args, **kwargs):
+        calls.append(1)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(cp.Problem, "get_problem_data", counting)
+    return calls

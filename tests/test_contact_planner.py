@@ -201,22 +201,10 @@ def test_relaxation_on_the_conic_core_is_cvxpys_program(planner):
         assert res.bound == pytest.approx(reference, rel=1e-5)
 
 
-def test_a_fresh_contact_planner_reads_its_compiled_relaxation(monkeypatch, tmp_path):
+def test_a_fresh_contact_planner_reads_its_compiled_relaxation(compilations, tmp_path):
     """The first planner of a machine compiles the relaxation and keeps it; a fresh one (another CLI call,
     another worker) compiles nothing and plans the same plan; a damaged file is compiled again."""
-    import cvxpy as cp
-
-    from lerobot_gcs_push.planner.conic import CACHE_ENV
-
-    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
-    calls = []
-    original = cp.Problem.get_problem_data
-
-    def counting(self, *args, **kwargs):
-        calls.append(1)
-        return original(self, *args, **kwargs)
-
-    monkeypatch.setattr(cp.Problem, "get_problem_data", counting)
+    calls = compilations
     pose, finger = STARTS[0]
     first = ContactPlanner(SCENE).plan(pose, finger)
     assert len(calls) == 1 and len(list(tmp_path.glob("contact-relaxation-*.npz"))) == 1

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from lerobot_gcs_push.planner import GcsPlanner
-from lerobot_gcs_push.planner.conic import CACHE_ENV, Infeasible, ParametricConic
+from lerobot_gcs_push.planner.conic import Infeasible, ParametricConic
 from lerobot_gcs_push.planner.restriction import Restriction
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
@@ -125,22 +125,6 @@ def test_a_plan_does_not_depend_on_earlier_plans():
     a, b = GcsPlanner(SCENE).plan(ics[0].box, ics[0].finger), used.plan(ics[0].box, ics[0].finger)
     assert a.cost == b.cost and a.modes == b.modes
     np.testing.assert_array_equal(a.finger_waypoints, b.finger_waypoints)
-
-
-@pytest.fixture
-def compilations(monkeypatch, tmp_path):
-    """Calls to cvxpy's one entry point to compilation, `Problem.get_problem_data`, with the planner's
-    cache of conic data in an empty directory."""
-    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
-    calls = []
-    original = cp.Problem.get_problem_data
-
-    def counting(self, *args, **kwargs):
-        calls.append(1)
-        return original(self, *args, **kwargs)
-
-    monkeypatch.setattr(cp.Problem, "get_problem_data", counting)
-    return calls
 
 
 def test_a_fresh_planner_plans_without_compiling(compilations):
