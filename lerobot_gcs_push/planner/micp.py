@@ -78,6 +78,8 @@ class ScipMicp:
 
 def _model(conic: Conic, binary: np.ndarray) -> tuple[Model, list]:
     """SCIP's model of min c.x + d, A x + s = b, s in the cones (a cone's rows: s_0 >= ||s_1:||)."""
+    if conic.psd:
+        raise ValueError("SCIP's model here has no PSD cones")
     model = Model()
     model.hideOutput()
     x = [
