@@ -258,3 +258,13 @@ def test_knot_windows_hold_every_heading_sequence_a_plan_can_take(steps, max_ste
             for th, w in zip(theta, windows):
                 if w is not None:
                     assert w.u @ [math.cos(th), math.sin(th)] >= w.cos_half - 1e-9
+
+
+def test_split_contact_pieces_refused_with_a_rolling_contact():
+    """A rolling contact moves along the face within a push (the finger's radius times the turn), so a
+    graph that keeps each push inside half a face misses plans that cross the middle: its bound would not
+    be a lower bound, and the planner refuses it; with the contact held still the split stays valid."""
+    with pytest.raises(ValueError, match="pieces=2 needs rolling=False"):
+        ContactPlanner(SCENE, pieces=2)
+    planner = ContactPlanner(SCENE, pieces=2, rolling=False)
+    assert planner.graph.pieces == 2 and planner.model.rolling_radius == 0.0

@@ -55,6 +55,13 @@ class ContactPlanner:
         # ends in the sim where the plan says (rolling=False holds it still, the model before 2026-12-03).
         if not rolling:
             self.model = dataclasses.replace(self.model, rolling_radius=0.0)
+        # A rolling contact moves along the face during a push, so a graph whose pushes each stay inside one
+        # piece of the face leaves out plans that cross a piece's end: its bound would not be certified.
+        if pieces > 1 and self.model.rolling_radius > 0:
+            raise ValueError(
+                f"pieces={pieces} needs rolling=False: a rolling contact can cross from one piece of a face to "
+                "the next within a push, so the split graph's bound is not a lower bound on every plan"
+            )
         # Pushes: a rolling contact turns the slider less per push, and the T's goal may be pi away. With 2
         # the T rounded 2 of 4 bench starts; with 3, 10 of 10 at a 15 % median gap and plans a third
         # cheaper than 2 layers without rolling (experiments/rotation/README.md). The square turns pi/4.
