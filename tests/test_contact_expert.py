@@ -177,6 +177,36 @@ def test_push_commands_lead_the_plan_by_the_fingers_lag_but_never_past_the_pushs
     np.testing.assert_allclose(sched.box[-1], poses[-1])  # the reference pose: the plan's slider pose
 
 
+def test_a_push_after_free_motion_is_reached_along_its_faces_normal_unless_that_point_is_blocked():
+    """A hand-made plan: the slider at the origin turned by pi/2, the finger 1 m to its right, free to the
+    contact point (0, -0.5) on the face whose body-frame normal is -x (in the world: -y), then two chained
+    pushes along +y. 0.2 m of approach: the free motion ends at (0, -0.7), then 0.2 m at 0.25 m/s to the
+    contact; the chained push gets none. Where the approach point is not clear, the plan is unchanged."""
+    from lerobot_gcs_push.contact.plan import ContactPlan
+    from lerobot_gcs_push.planner.plan import APPROACH, FREE, PUSH, Speeds
+
+    fingers = np.array([[1.0, -0.5], [0.0, -0.5], [0.0, -0.4], [0.0, -0.3]])
+    poses = np.array([[0.0, 0.0, np.pi / 2], [0.0, 0.0, np.pi / 2], [0.0, 0.1, np.pi / 2], [0.0, 0.2, np.pi / 2]])
+    pushes = [{"face": 0, "normal": np.array([-1.0, 0.0])}]
+    plan = ContactPlan("test", 1.0, 0.5, 0.0, [], poses, fingers, [FREE, PUSH, PUSH], np.zeros(3), pushes)
+
+    path, slider, kinds = plan.with_approaches(0.2)
+    np.testing.assert_allclose(path, [[1.0, -0.5], [0.0, -0.7], [0.0, -0.5], [0.0, -0.4], [0.0, -0.3]], atol=1e-12)
+    assert kinds == [FREE, APPROACH, PUSH, PUSH]
+    np.testing.assert_allclose(slider[1], poses[1])  # the slider rests while the finger approaches
+    speeds = Speeds()
+    sched = plan.schedule(10, speeds, approach_m=0.2)
+    free_s, approach_s, push_s = np.hypot(1.0, 0.2) / speeds.free, 0.2 / speeds.approach, 0.2 / speeds.push
+    assert len(sched) == int(np.ceil((free_s + approach_s + push_s) * 10 - 1e-9))
+    assert sched.kinds.count(APPROACH) == pytest.approx(approach_s * 10, abs=1)
+    np.testing.assert_allclose(sched.commands[-1], fingers[-1])
+
+    blocked = plan.with_approaches(0.2, clear=lambda pose, p: p[1] > -0.65)
+    np.testing.assert_allclose(blocked[0], fingers)
+    assert blocked[2] == [FREE, PUSH, PUSH]
+    assert plan.with_approaches(0.0)[2] == [FREE, PUSH, PUSH]
+
+
 def test_a_start_with_no_plan_is_a_failed_run_not_a_crash(monkeypatch):
     """The T's 11th sobol start (seed 0) has no plan here: no sampled path's restriction solves (it ended a
     whole `generate` once). Stood in for by a planner that always fails, so that the test does not hang

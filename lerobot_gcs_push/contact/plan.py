@@ -3,6 +3,7 @@ the pushes' contact points and displacements, the cost and the relaxation's cert
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -11,7 +12,7 @@ from lerobot_gcs_push.contact.face_contact import finger_body
 from lerobot_gcs_push.contact.graph import ContactGraph
 from lerobot_gcs_push.contact.model import PushModel
 from lerobot_gcs_push.contact.rounding import Restriction
-from lerobot_gcs_push.planner.plan import FREE, PUSH, Schedule, SegmentKind, Speeds
+from lerobot_gcs_push.planner.plan import APPROACH, FREE, PUSH, Schedule, SegmentKind, Speeds
 
 
 @dataclass
@@ -43,50 +44,81 @@ class ContactPlan:
     def finger_length(self) -> float:
         return float(np.sum(np.linalg.norm(np.diff(self.finger_path, axis=0), axis=1)))
 
-    def _times(self, speeds: Speeds) -> np.ndarray:
-        seg = np.linalg.norm(np.diff(self.finger_path, axis=0), axis=1)
-        v = np.array([speeds.of(k) for k in self.segment_kinds])
+    def _times(self, speeds: Speeds, path=None, kinds=None) -> np.ndarray:
+        path = self.finger_path if path is None else path
+        seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
+        v = np.array([speeds.of(k) for k in (self.segment_kinds if kinds is None else kinds)])
         return np.concatenate([[0.0], np.cumsum(seg / v)])
 
     def duration(self, speeds: Speeds | None = None) -> float:
         return float(self._times(speeds or Speeds())[-1])
 
-    def schedule(self, fps: float, speeds: Speeds | None = None, lag_s: float = 0.0) -> Schedule:
+    def with_approaches(self, distance: float, clear: Callable | None = None) -> tuple:
+        """(finger path, slider poses, segment kinds) with each push after free motion reached along its
+        face's normal: the free motion ends `distance` off the contact point, an APPROACH segment covers
+        the rest. An approach point that is not `clear(pose, point)`, or not reached clear of the slider
+        (sampled), is left out: that push is reached as planned."""
+        path, poses, kinds = [self.finger_path[0]], [self.slider_poses[0]], []
+        run = 0
+        for i, kind in enumerate(self.segment_kinds):
+            starts_push = kind == PUSH and i > 0 and self.segment_kinds[i - 1] != PUSH
+            if starts_push and distance > 0 and run < len(self.pushes) and "normal" in self.pushes[run]:
+                pose, contact = self.slider_poses[i], self.finger_path[i]
+                c, s = np.cos(pose[2]), np.sin(pose[2])
+                n = np.asarray(self.pushes[run]["normal"], float)
+                pre = contact + distance * np.array([c * n[0] - s * n[1], s * n[0] + c * n[1]])
+                ok = clear is None or all(
+                    clear(pose, (1 - w) * self.finger_path[i - 1] + w * pre) for w in np.linspace(0, 1, 15)
+                )
+                if ok:  # path[-1] is the contact point: replace the free segment's end by the approach point
+                    path[-1], kinds[-1] = pre, FREE
+                    path.append(contact)
+                    poses.append(pose)
+                    kinds.append(APPROACH)
+            if starts_push or (kind == PUSH and i == 0):
+                run += 1
+            path.append(self.finger_path[i + 1])
+            poses.append(self.slider_poses[i + 1])
+            kinds.append(kind)
+        return np.array(path), np.array(poses), kinds
+
+    def schedule(
+        self,
+        fps: float,
+        speeds: Speeds | None = None,
+        lag_s: float = 0.0,
+        approach_m: float = 0.0,
+        clear: Callable | None = None,
+    ) -> Schedule:
         """Commands at t = 1/fps, 2/fps, ..., the segment kind at each, and where the plan has the slider
         then (x, y, heading: the closed-loop expert's reference). `lag_s` (Scene.push_lag_s) turns on the
         box planner's push lead: the finger trails its command by v * lag_s while pushing, so commands run
         that far ahead along the push, but never past the push's end (a short correction near the goal
-        would overshoot by the whole lead). No dwell: the rotating slider's plans chain pushes (its
-        closed-loop expert replans where a push ended elsewhere)."""
+        would overshoot by the whole lead). `approach_m` > 0 reaches each push along its face's normal,
+        the last `approach_m` at the approach speed (`with_approaches`; `clear(pose, point)` says where the
+        finger may stand): arriving along its free path at free speed, the finger touched the T 5-10 cm
+        from the planned contact and near the goal the push turned it away (experiments/rotation/).
+        No dwell: the rotating slider's plans chain pushes (its closed-loop expert replans where a push
+        ended elsewhere)."""
         speeds = speeds or Speeds()
-        t_knots = self._times(speeds)
+        path, slider, kinds = self.with_approaches(approach_m, clear)
+        t_knots = self._times(speeds, path, kinds)
         n = max(1, int(np.ceil(t_knots[-1] * fps - 1e-9)))
         t = np.minimum(np.arange(1, n + 1) / fps, t_knots[-1])
-        cmds = np.stack([np.interp(t, t_knots, self.finger_path[:, i]) for i in range(2)], axis=1)
-        poses = np.stack([np.interp(t, t_knots, self.slider_poses[:, i]) for i in range(3)], axis=1)
-        if not self.segment_kinds:
+        cmds = np.stack([np.interp(t, t_knots, path[:, i]) for i in range(2)], axis=1)
+        poses = np.stack([np.interp(t, t_knots, slider[:, i]) for i in range(3)], axis=1)
+        if not kinds:
             return Schedule(cmds, [FREE] * n, poses)
-        seg = np.clip(np.searchsorted(t_knots, t - 1e-12) - 1, 0, len(self.segment_kinds) - 1)
+        seg = np.clip(np.searchsorted(t_knots, t - 1e-12) - 1, 0, len(kinds) - 1)
         lead = speeds.push_lead * lag_s * speeds.push
         if lead > 0:
-            for a, b in self._push_runs():
-                path = self.finger_path[a : b + 1]
-                arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+            for a, b in _push_runs(kinds):
+                run = path[a : b + 1]
+                arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(run, axis=0), axis=1))])
                 on = (t > t_knots[a] + 1e-12) & (t < t_knots[b] - 1e-9)  # as the segment kinds: (start, end]
                 ahead = np.minimum(np.interp(t[on], t_knots[a : b + 1], arc) + lead, arc[-1])
-                cmds[on] = np.stack([np.interp(ahead, arc, path[:, i]) for i in range(2)], axis=1)
-        return Schedule(cmds, [self.segment_kinds[i] for i in seg], poses)
-
-    def _push_runs(self) -> list[tuple[int, int]]:
-        """(first knot, last knot) of each run of consecutive push segments."""
-        runs, start = [], None
-        for i, kind in enumerate([*self.segment_kinds, FREE]):
-            if kind == PUSH and start is None:
-                start = i
-            elif kind != PUSH and start is not None:
-                runs.append((start, i))
-                start = None
-        return runs
+                cmds[on] = np.stack([np.interp(ahead, arc, run[:, i]) for i in range(2)], axis=1)
+        return Schedule(cmds, [kinds[i] for i in seg], poses)
 
     def commands(self, fps: float, speeds: Speeds | None = None) -> np.ndarray:
         """Finger position commands at t = 1/fps, 2/fps, ... along the plan (no push lead)."""
@@ -109,6 +141,18 @@ class ContactPlan:
             "candidates": self.candidates,
             **self.extra,
         }
+
+
+def _push_runs(kinds) -> list[tuple[int, int]]:
+    """(first knot, last knot) of each run of consecutive push segments."""
+    runs, start = [], None
+    for i, kind in enumerate([*kinds, FREE]):
+        if kind == PUSH and start is None:
+            start = i
+        elif kind != PUSH and start is not None:
+            runs.append((start, i))
+            start = None
+    return runs
 
 
 def trace(model: PushModel, graph: ContactGraph, r: Restriction, start_pose) -> tuple:
@@ -140,5 +184,5 @@ def trace(model: PushModel, graph: ContactGraph, r: Restriction, start_pose) -> 
                 fingers.append(world(p, finger_body(face, model, sol["lam"][k])))
                 kinds.append(PUSH)
         pose = poses[-1]
-        pushes.append({k: sol[k] for k in ("face", "lam", "fn", "ft", "x", "y", "c", "s")})
+        pushes.append({k: sol[k] for k in ("face", "lam", "fn", "ft", "x", "y", "c", "s")} | {"normal": face.n})
     return np.array(poses), np.array(fingers), kinds, modes, pushes
