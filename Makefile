@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 export HF_HUB_OFFLINE ?= 1
 export MPLBACKEND ?= Agg
 
-.PHONY: install test demo bench clean-venv
+.PHONY: install test test-all lint demo bench clean-venv
 
 install: $(STAMP)
 
@@ -23,10 +23,16 @@ $(STAMP): pyproject.toml
 	@$(PY) -c "import torchcodec" 2>/dev/null || $(PY) -m pip uninstall --quiet -y torchcodec
 	@touch $(STAMP)
 
-test: install
+# The fast tier (<= 5 min on 2 cores); test-all adds the tests marked slow (what CI runs).
+test: lint
+	$(PY) -m pytest -q -m "not slow" $(PYTEST_ARGS)
+
+test-all: lint
+	$(PY) -m pytest -q $(PYTEST_ARGS)
+
+lint: install
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
-	$(PY) -m pytest -q $(PYTEST_ARGS)
 
 demo: install
 	$(VENV)/bin/gcs-push demo $(DEMO_ARGS)

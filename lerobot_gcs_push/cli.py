@@ -9,6 +9,7 @@ only maps commands to configs and prints reports; the work lives in the modules 
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
 from collections.abc import Callable
@@ -49,6 +50,11 @@ class PlanConfig:
         from lerobot_gcs_push.rollout import check_env_id
 
         check_method(self.method)
+        if isinstance(self.heading, bool) or not _is_finite_number(self.heading):
+            raise ValueError(f"heading must be a finite number of radians, got {_plain(self.heading)!r}")
+        self.heading = float(self.heading)
+        if self.heading != 0.0 and not SCENES[check_env_id(self.env_id)].rotates:
+            raise ValueError(f"heading {self.heading} given, but {self.env_id}'s slider cannot rotate")
         if SCENES[check_env_id(self.env_id)].rotates and (self.method != "relaxation" or self.goal is not None):
             raise ValueError(f"{self.env_id} plans with the relaxation to the scene's goal pose only")
         if self.initial_conditions and (self.box or self.finger):
@@ -114,7 +120,12 @@ def run_plan(cfg: PlanConfig) -> None:
         if cfg.initial_conditions
         else [{"box": cfg.box, "finger": cfg.finger}]
     )
-    if SCENES[cfg.env_id].rotates:
+    scene = SCENES[cfg.env_id]
+    for i, q in enumerate(queries):  # every entry checked before the first plan, each error naming its field
+        what = f"{cfg.initial_conditions!r} entry {i}" if cfg.initial_conditions else "plan"
+        heading = float(q.get("heading", cfg.heading)) if scene.rotates else 0.0
+        scene.validate_state(q["box"], q["finger"], heading=heading, what=what, box_limit=scene.box_reach)
+    if scene.rotates:
         return _plan_through_contact(cfg, queries)
     planner = GcsPlanner(Scene(), method=cfg.method)
     for q in queries:
@@ -151,10 +162,28 @@ def _plan_through_contact(cfg: PlanConfig, queries: list[dict]) -> None:
             print(json.dumps(plan.to_json() | {"slider_final": final}), flush=True)
             continue
         print(
-            f"cost {plan.cost:.4f} (certified lower bound {plan.lower_bound:.4f}, gap {100 * plan.gap:.1f} %), "
+            f"cost {plan.cost:.4f} ({_bound_text(plan)}), "
             f"solved in {plan.solve_time_s:.2f} s; modes: {' -> '.join(plan.modes)}"
         )
         print(f"slider ends at {final} (x, y, heading)")
+
+
+def _bound_text(plan) -> str:
+    if plan.lower_bound is None:
+        return "lower bound uncertified: the relaxation's dual residual was too large to vouch for it"
+    return f"certified lower bound {plan.lower_bound:.4f}, gap {plan.gap_text()}"
+
+
+def _is_finite_number(value) -> bool:
+    try:
+        return math.isfinite(float(value))
+    except (TypeError, ValueError):
+        return False
+
+
+def _plain(value):
+    """A numpy scalar as the Python number it holds (messages print 0.5, not np.float64(0.5))."""
+    return value.item() if hasattr(value, "item") else value
 
 
 def run_generate(cfg: GenerateConfig) -> None:
@@ -280,7 +309,7 @@ def run_demo(cfg: DemoConfig) -> None:
 
 COMMANDS: dict[str, tuple[type, Callable, str]] = {
     "plan": (PlanConfig, run_plan, "plan one push task (or a file of them) with GCS"),
-    "generate": (GenerateConfig, run_generate, "write GCS demonstrations as a LeRobotDataset"),
+    "generate": (GenerateConfig, run_generate, "write GCS demonstrations as a LeRobotDataset (PushT: lerobot/pusht's)"),
     "evaluate": (EvaluateConfig, run_evaluate, "the paper's protocol, with regret, for any set of policies"),
     "collect": (CollectConfig, run_collect, "active data: label the states a policy visited with the expert"),
     "improve": (ImproveConfig, run_improve, "rounds of active data until the policy is robust (resumable)"),

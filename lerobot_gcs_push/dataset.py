@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_gcs_push.files import atomic_path
-from lerobot_gcs_push.registration import ENV_ID, SCENES
+from lerobot_gcs_push.pusht_dataset import PUSHT_FEATURE_KEYS, PushTFrames, pusht_features
+from lerobot_gcs_push.registration import ENV_ID, PUSHT_ENV_ID, SCENES
 from lerobot_gcs_push.scene import (
     Disturbances,
     Scene,
@@ -50,7 +51,8 @@ _IMPLICIT_SETTINGS = {"env_id": ENV_ID}
 @dataclass
 class GenerateConfig:
     # The registered env to record in: GcsPushBox-v0 (the box that cannot turn), GcsPushBoxSE2-v0 or
-    # GcsPushT-v0 (rotating sliders, whose GCS expert plans through contact: --method=relaxation only).
+    # GcsPushT-v0 (rotating sliders, whose GCS expert plans through contact: --method=relaxation only), or
+    # gym_pusht/PushT-v0 (gym-pusht's own env, written in lerobot/pusht's format: see pusht_dataset.py).
     env_id: str = ENV_ID
     # Successful demonstrations to write (failed rollouts are left out). Default: 100 from the sampler,
     # or as many as --initial_conditions has entries.
@@ -83,8 +85,9 @@ class GenerateConfig:
     fps: int = Scene.fps
     # Observation image side, pixels.
     image_size: int = 96
-    # Simulated seconds before a rollout counts as failed.
-    max_sim_time_s: float = Scene.timeout_s
+    # Simulated seconds before a rollout counts as failed. Default: the env's (500 s, the paper's; 30 s, that
+    # is 300 steps, for gym-pusht, so its episodes succeed within gym-pusht's own limit).
+    max_sim_time_s: float | None = None
     # Replace an existing dataset (and an interrupted run's work).
     overwrite: bool = False
     # Continue an interrupted run, keeping its finished episodes and shards.
@@ -107,7 +110,8 @@ class GenerateConfig:
         from lerobot_gcs_push.rollout import check_env_id
 
         check_env_id(self.env_id)
-        ics = load_initial_conditions(self.initial_conditions) if self.initial_conditions else None
+        scene = SCENES[self.env_id]
+        ics = load_initial_conditions(self.initial_conditions, scene) if self.initial_conditions else None
         if self.episodes is None:
             self.episodes = len(ics) if ics else 100
         if self.episodes < 1:
@@ -129,16 +133,21 @@ class GenerateConfig:
         check_method(self.method)
         if rotates and self.method != "relaxation":
             raise ValueError(f"{self.env_id} plans with the relaxation only: drop --method={self.method}")
+        if self.max_sim_time_s is None:
+            self.max_sim_time_s = scene.timeout_s
         if self.image_size < 1 or not self.max_sim_time_s > 0:
             raise ValueError("image_size must be >= 1 and max_sim_time_s positive")
         per_s = round(1 / Disturbances.tick_s)
         if self.fps <= 0 or per_s % self.fps:  # an env step is a whole number of disturbance ticks
             raise ValueError(f"fps must divide {per_s}, got {self.fps}")
         if ics:  # refused before any worker starts, each entry named
-            scene = SCENES[self.env_id]
             for i, ic in enumerate(ics):
                 scene.validate_state(
-                    ic["box"], ic["finger"], heading=ic.get("heading", 0.0), what=f"initial condition {i}"
+                    ic["box"],
+                    ic["finger"],
+                    heading=ic.get("heading", 0.0),
+                    what=f"initial condition {i}",
+                    allow_overlap=scene.frame is not None,  # gym-pusht's own resets may overlap
                 )
         if self.frames is not None and self.frames < 1:
             raise ValueError(f"frames must be >= 1, got {self.frames}")
@@ -207,19 +216,18 @@ CRASH_ENV = "GCS_PUSH_TEST_CRASH_DIR"  # tests: a file `episode_<i>` there kills
 
 
 def _init_worker(cfg_dict: dict, work_path: str, shards_path: str) -> None:
-    import gymnasium as gym
-
     import lerobot_gcs_push  # noqa: F401  (registers the env)
     from lerobot_gcs_push.expert import ExpertConfig, make_expert
+    from lerobot_gcs_push.registration import make_env
 
     cfg = GenerateConfig(**cfg_dict)
-    env = gym.make(
+    env = make_env(
         cfg.env_id,
         fps=cfg.fps,
         image_size=cfg.image_size,
         disturbances=cfg.disturbances,
         max_sim_time_s=cfg.max_sim_time_s,
-    ).unwrapped
+    )
     _WORKER.update(
         cfg=cfg,
         env=env,
@@ -283,10 +291,20 @@ def _run_episode(job: tuple[int, dict]) -> dict:
 
     index, ic = job
     env, expert, cfg = _WORKER["env"], _WORKER["expert"], _WORKER["cfg"]
-    frames = EpisodeFrames(env.scene)
+    pusht = cfg.env_id == PUSHT_ENV_ID  # lerobot/pusht's frames, recorded from the env's own steps
+    frames = PushTFrames(env) if pusht else EpisodeFrames(env.scene)
     t0 = time.perf_counter()
     seed = episode_seed(cfg.seed, index)
-    result = rollout(env, expert, ic["box"], ic["finger"], seed=seed, on_step=frames, heading=ic.get("heading"))
+    result = rollout(
+        frames.env if pusht else env,
+        expert,
+        ic["box"],
+        ic["finger"],
+        seed=seed,
+        on_step=None if pusht else frames,
+        heading=ic.get("heading"),
+        pusht_state=ic.get("pusht_state"),
+    )
     plan = result["plan"]
     meta = {
         "index": index,
@@ -306,6 +324,8 @@ def _run_episode(job: tuple[int, dict]) -> dict:
     }
     if "slider_pose_final" in result:  # a rotating slider: where it started and how much of the goal it covers
         meta |= {"heading_initial": ic.get("heading", 0.0), "coverage": result["coverage"]}
+    if ic.get("pusht_state") is not None:  # gym-pusht's start, as its obs_type="state" reports it
+        meta["pusht_state_initial"] = [float(v) for v in ic["pusht_state"]]
     arrays = frames.arrays() if result["success"] else {}
     # The worker compresses and saves its own episode; only the metadata travels back.
     _WORKER["work"].save({"meta": meta, "arrays": arrays})
@@ -351,7 +371,7 @@ class WorkDir:
 
     def load_arrays(self, index: int) -> dict[str, np.ndarray]:
         with np.load(self.episode_file(index), allow_pickle=False) as z:
-            return {k: z[k.replace(".", "__")] for k in FEATURE_KEYS}
+            return {k.replace("__", "."): z[k] for k in z.files if k != "meta"}
 
 
 # --- the generator -----------------------------------------------------------------------------------
@@ -415,8 +435,9 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
 
     t0 = time.perf_counter()
     if cfg.initial_conditions:
-        keys = ("box", "finger", "heading")  # a file's other keys (a branch state's source) stay out of the jobs
-        ics = [{k: ic[k] for k in keys if k in ic} for ic in load_initial_conditions(cfg.initial_conditions)]
+        # A file's other keys (a branch state's source) stay out of the jobs.
+        keys = ("box", "finger", "heading", "pusht_state")
+        ics = [{k: ic[k] for k in keys if k in ic} for ic in load_initial_conditions(cfg.initial_conditions, scene)]
     else:
         max_attempts = int(np.ceil(cfg.episodes * cfg.max_attempts_factor)) + 10
         ics = [
@@ -697,20 +718,22 @@ class _Writer:
         from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
         scene = SCENES[cfg.env_id]
+        pusht = cfg.env_id == PUSHT_ENV_ID  # lerobot/pusht's features, its image as video
         self.task = scene.task
+        self.keys = PUSHT_FEATURE_KEYS if pusht else FEATURE_KEYS
         self.ds = LeRobotDataset.create(
             repo_id=cfg.repo_id,
             fps=cfg.fps,
-            features=features(scene, cfg.image_size),
+            features=pusht_features(cfg.image_size) if pusht else features(scene, cfg.image_size),
             root=root,
-            robot_type="gcs_push_finger",
-            use_videos=False,
+            robot_type=None if pusht else "gcs_push_finger",
+            use_videos=pusht,
             video_backend="pyav",
         )
 
     def add(self, arrays: dict[str, np.ndarray]) -> None:
         for t in range(len(arrays["action"])):
-            self.ds.add_frame({k: arrays[k][t] for k in FEATURE_KEYS} | {"task": self.task})
+            self.ds.add_frame({k: arrays[k][t] for k in self.keys} | {"task": self.task})
         with _batched_image_embedding():
             self.ds.save_episode()
 

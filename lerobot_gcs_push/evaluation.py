@@ -27,7 +27,6 @@ from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.registration import ENV_ID, SCENES
 from lerobot_gcs_push.scene import (
     TASK,
-    Scene,
     check_sampler,
     episode_seed,
     load_initial_conditions,
@@ -125,8 +124,9 @@ class EvaluateConfig:
     device: str = "cpu"
     # Worker processes (or Ray actors).
     workers: int = 1
-    # Simulated seconds before a run counts as failed (the paper: 500).
-    timeout_s: float = Scene.timeout_s
+    # Simulated seconds before a run counts as failed. Default: the env's own (the paper's 500 for the Drake
+    # envs, gym-pusht's 30, its 300 steps).
+    timeout_s: float | None = None
     # Success radii (m) of the box centre around the goal: the paper's 0.1 and a looser one. A rotating
     # slider succeeds by the env's coverage instead, and its tables give the mean coverage.
     success_thresholds: tuple[float, float] = (0.1, 0.2)
@@ -150,6 +150,8 @@ class EvaluateConfig:
             raise ValueError("give at least one policy")
         if self.runs < 1 or self.num_initial_conditions < 1 or self.workers < 1:
             raise ValueError("runs, num_initial_conditions and workers must be >= 1")
+        if self.timeout_s is None:
+            self.timeout_s = SCENES[self.env_id].timeout_s
         if not self.timeout_s > 0:
             raise ValueError(f"timeout_s must be positive, got {self.timeout_s}")
         for p in self.policies:
@@ -230,9 +232,15 @@ def video_path(out: Path, label: str, ic_index: int) -> Path:
 def initial_conditions(cfg: EvaluateConfig) -> list[dict]:
     scene = SCENES[cfg.env_id]
     if cfg.initial_conditions:
-        ics = load_initial_conditions(cfg.initial_conditions)
+        ics = load_initial_conditions(cfg.initial_conditions, scene)
         for i, ic in enumerate(ics):
-            scene.validate_state(ic["box"], ic["finger"], heading=ic.get("heading", 0.0), what=f"initial condition {i}")
+            scene.validate_state(
+                ic["box"],
+                ic["finger"],
+                heading=ic.get("heading", 0.0),
+                what=f"initial condition {i}",
+                allow_overlap=scene.frame is not None,  # gym-pusht's own resets may overlap
+            )
         return ics
     return [
         ic.to_json()
@@ -241,22 +249,31 @@ def initial_conditions(cfg: EvaluateConfig) -> list[dict]:
 
 
 # --- rollouts, in worker processes --------------------------------------------------------------------
+class _Lazy(dict):
+    """A dict that makes a missing key's value with `make(key)`."""
+
+    def __init__(self, make):
+        super().__init__()
+        self._make = make
+
+    def __missing__(self, key):
+        self[key] = value = self._make(key)
+        return value
+
+
 class _Runner:
     def __init__(self, cfg: EvaluateConfig, out: Path):
-        import gymnasium as gym
-
         import lerobot_gcs_push  # noqa: F401
+        from lerobot_gcs_push.registration import make_env
 
         self.cfg, self.out = cfg, out
-        self.envs = {
-            d: gym.make(
-                cfg.env_id,
-                disturbances=d,
-                max_sim_time_s=cfg.timeout_s,
-                success_threshold=cfg.success_thresholds[0],
-            ).unwrapped
-            for d in (False, True)
-        }
+
+        # Made once each, the env with disturbances only if a run asks for it (gym-pusht has none).
+        self.envs = _Lazy(
+            lambda d: make_env(
+                cfg.env_id, disturbances=d, max_sim_time_s=cfg.timeout_s, success_threshold=cfg.success_thresholds[0]
+            )
+        )
         self._experts: dict = {}
         self._learned: dict = {}
         self._cost_to_go = None
@@ -313,7 +330,16 @@ class _Runner:
         from lerobot_gcs_push.rollout import rollout
 
         actor = self.expert(policy) if policy in GCS_POLICIES else self.learned(policy)
-        res = rollout(env, actor, ic["box"], ic["finger"], seed=seed, on_step=on_step, heading=ic.get("heading"))
+        res = rollout(
+            env,
+            actor,
+            ic["box"],
+            ic["finger"],
+            seed=seed,
+            on_step=on_step,
+            heading=ic.get("heading"),
+            pusht_state=ic.get("pusht_state"),
+        )
         plan_time = res.get("plan_time_s", 0.0)
         chunk = getattr(actor, "chunk_steps", GCS_CHUNK_STEPS)
         traj.add_final(res)

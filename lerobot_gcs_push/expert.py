@@ -16,6 +16,12 @@ from lerobot_gcs_push.planner import GcsPlanner, Plan, SolverError, Speeds
 from lerobot_gcs_push.planner.plan import DWELL, PUSH, Schedule
 
 EXPERTS = ("open-loop", "closed-loop")
+# gym-pusht's block is first order (it stops the moment the push does): no dwell. Its agent is steered onto
+# the plan's points (pusht_agent.target_for), so no lead either. In m/s (60 px/m). Commanded with the plan's
+# points at free 3, push 1.5 m/s, the lagging agent cut corners into the T: 4 of 6 starts (seed 77), one
+# with 34 replans; at 1 / 0.5 m/s, seed 2026's first three took 10-27 s and the fourth over 6 min of
+# replanning; steered, at 2 / 1 m/s, seed 77's two failures and one more succeeded in 4-9 s.
+PUSHT_SPEEDS = Speeds(free=2.0, approach=1.0, push=1.0, retreat=2.0, push_dwell_s=0.0, push_lead=0.0)
 
 
 def check_cost_to_go(env_id: str, needed_by: str = "") -> None:
@@ -41,6 +47,14 @@ def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=N
 
         if config.method != "relaxation":
             raise ValueError(f"a rotating slider plans with the relaxation only, not {config.method!r}")
+        if scene.frame is not None:  # gym-pusht: pixels, its agent's dynamics inverted, speeds it can follow
+            from lerobot_gcs_push.contact.expert import PixelActions
+            from lerobot_gcs_push.pusht_agent import target_for
+
+            expert = ContactExpert(planner or ContactPlanner(scene), fps, config, PUSHT_SPEEDS)
+            return PixelActions(
+                expert, scene.frame, lambda info, px: target_for(info["pos_agent"], info["vel_agent"], px)
+            )
         return ContactExpert(planner or ContactPlanner(scene), fps, config)
     return GcsExpert(planner or GcsPlanner(scene, method=config.method), fps, config)
 

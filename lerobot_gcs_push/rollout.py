@@ -38,16 +38,20 @@ def rollout(
     seed: int | None = None,
     on_step: Callable[[dict, np.ndarray, dict], None] | None = None,
     heading: float | None = None,
+    pusht_state=None,
 ) -> dict:
     """Run one episode of `policy` in `env` (a GcsPushBoxEnv, possibly wrapped) and summarise it.
 
-    Without `box`/`finger` the env samples the initial condition from `seed`; `heading` is a rotating
+    Without `box`/`finger` the env samples the initial condition from `seed`; `pusht_state` (gym-pusht's
+    state vector of the same start) takes their place in gym-pusht; `heading` is a rotating
     slider's (None: the env's default, 0). `on_step(obs, action, info)` sees each action with the
     observation it was chosen from. A rotating slider's summary adds its final pose, coverage and
     heading error."""
     options = None if box is None else {"box": list(box), "finger": list(finger)}
     if options is not None and heading is not None:
         options["heading"] = float(heading)
+    if pusht_state is not None:  # gym-pusht's own state of the same start: its reset lands on it exactly
+        options = {"pusht_state": list(pusht_state)}
     obs, info = env.reset(seed=seed, options=options)
     policy.reset(obs, info, seed)
     t0 = time.perf_counter()

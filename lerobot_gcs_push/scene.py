@@ -13,10 +13,14 @@ import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from lerobot_gcs_push.shapes import SliderShape, square, tee
+from lerobot_gcs_push.shapes import PIVOTS, SliderShape, square, tee
+
+if TYPE_CHECKING:
+    from lerobot_gcs_push.pusht_frame import PixelFrame
 
 
 @dataclass(frozen=True)
@@ -77,6 +81,13 @@ class Scene:
     goal_heading: float = 0.0  # radians, the goal pose's heading (a rotating slider only)
     # The limit surface's torque scale, tau_max = f_max * c * r_max (the reference uses c = 0.3-0.6).
     limit_surface_c: float = 0.6
+    # A slider whose mass is known: sqrt(I / m) about its centre of mass (m), in limit_surface_c * r_max's
+    # place (a first-order body under frictionless contact moves as M^-1 wrench: gym-pusht's T).
+    limit_surface_radius: float | None = None
+    # Where the slider's frame (and so its limit surface) is centred: shapes.PIVOTS.
+    slider_pivot: str = "centroid"
+    # A target env that speaks pixels (gym-pusht): where these metres sit on its screen.
+    frame: PixelFrame | None = None
     success_coverage: float = 0.95  # a rotating slider succeeds when it covers this share of the goal outline
     camera: Camera = field(default_factory=Camera)
     disturbances: Disturbances = field(default_factory=Disturbances)
@@ -103,6 +114,10 @@ class Scene:
             raise ValueError(f"Scene.goal_heading must be finite, got {self.goal_heading!r}")
         if not 0 < self.success_coverage <= 1:
             raise ValueError(f"Scene.success_coverage must be in (0, 1], got {self.success_coverage!r}")
+        if self.slider_pivot not in PIVOTS:
+            raise ValueError(f"Scene.slider_pivot must be one of {PIVOTS}, got {self.slider_pivot!r}")
+        if self.limit_surface_radius is not None and not self.limit_surface_radius > 0:
+            raise ValueError(f"Scene.limit_surface_radius must be positive, got {self.limit_surface_radius!r}")
         self.shape  # noqa: B018  (an unknown slider fails here, not at the first use)
         if self.slider != "box" and not self.rotates:
             # Only the box has the paper's convex simplification (and its filled goal square).
@@ -114,14 +129,16 @@ class Scene:
         if self.slider == "box":
             return square(self.box_size)
         if self.slider == "tee":
-            return tee(self.tee_bar_length)
+            return tee(self.tee_bar_length, self.slider_pivot)
         raise ValueError(f"unknown slider {self.slider!r}: choose 'box' or 'tee'")
 
     @property
     def rot_damping(self) -> float:
         """N*m*s/rad on the yaw joint. Quasi-statically v = f / b and omega = tau / b_theta: an ellipsoidal
-        limit surface with tau_max / f_max = sqrt(b_theta / b) = c * r_max, the planner's own model."""
-        return self.box_damping * (self.limit_surface_c * self.shape.r_max) ** 2
+        limit surface with tau_max / f_max = sqrt(b_theta / b) = c * r_max (or limit_surface_radius), the
+        planner's own model."""
+        radius = self.limit_surface_radius or self.limit_surface_c * self.shape.r_max
+        return self.box_damping * radius**2
 
     @property
     def box_half(self) -> float:
@@ -227,9 +244,11 @@ class Scene:
         heading: float = 0.0,
         what: str = "initial condition",
         box_limit: float | None = None,
+        allow_overlap: bool = False,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Return (box, finger) as arrays, or raise a ValueError that names the violation. `heading` is the
-        slider's (radians; only a rotating slider may have one other than 0)."""
+        slider's (radians; only a rotating slider may have one other than 0). `allow_overlap`: a finger
+        inside the slider is a valid start (gym-pusht's resets draw such starts)."""
         box = _vector2(box, f"{what}: box")
         finger = _vector2(finger, f"{what}: finger")
         if not _is_finite_number(heading):
@@ -244,7 +263,8 @@ class Scene:
                 f"{what}: finger {finger.tolist()} lies outside the finger workspace |x|,|y| <= {self.finger_limit}"
             )
         gap = self.finger_box_gap(box, finger, float(heading))
-        if gap < -1e-9:  # touching counts as valid, whatever the rounding of box - contact distance
+        # Touching counts as valid, whatever the rounding of box - contact distance.
+        if gap < -1e-9 and not allow_overlap:
             raise ValueError(
                 f"{what}: finger {finger.tolist()} overlaps the box {box.tolist()} (penetration {-gap:.3f} m)"
             )
@@ -297,11 +317,14 @@ class InitialCondition:
     finger: tuple[float, float]
     kind: str = ""  # which family of the hard sampler drew it ("" for the space-filling samplers)
     heading: float | None = None  # the slider's, radians; None for a slider that cannot rotate
+    pusht_state: tuple[float, ...] | None = None  # gym-pusht's own state vector of the same start (px)
 
     def to_json(self) -> dict:
         out = {"box": list(self.box), "finger": list(self.finger)}
         if self.heading is not None:
             out["heading"] = self.heading
+        if self.pusht_state is not None:
+            out["pusht_state"] = list(self.pusht_state)
         if self.kind:
             out["kind"] = self.kind
         return out
@@ -323,6 +346,8 @@ def sample_initial_conditions(
     `collides(box, finger)` defaults to the exact sphere-box distance; the env passes Drake's query.
     The i-th condition depends only on the seed and i, so a prefix of a longer list is the shorter list.
 
+    A target with its own resets (gym-pusht: `scene.frame`) draws them instead, from seeds of `seed`.
+
     A rotating slider (`scene.rotates`) adds a fifth coordinate, its heading, uniform in [-pi, pi) (from
     the same Sobol or uniform stream), and `collides(box, finger, heading)` gets it. The hard families
     are the box's (they align the finger with axis-aligned faces) and refuse a rotating slider.
@@ -330,6 +355,10 @@ def sample_initial_conditions(
     if n < 0:
         raise ValueError(f"number of initial conditions must be >= 0, got {n}")
     check_sampler(sampler)
+    if scene.frame is not None and sampler not in HARD_SAMPLERS:
+        from lerobot_gcs_push.pusht_env import reset_states  # gym-pusht's starts are its own resets'
+
+        return reset_states(scene, n, seed)
     if collides is None:
         collides = lambda b, f, h=0.0: scene.finger_box_gap(b, f, h) < 0  # noqa: E731
     out: list[InitialCondition] = []
@@ -431,9 +460,11 @@ def episode_seed(seed: int, index: int) -> int:
     return int(np.random.SeedSequence([seed, index]).generate_state(1)[0])
 
 
-def load_initial_conditions(path) -> list[dict]:
+def load_initial_conditions(path, scene: Scene | None = None) -> list[dict]:
     """A JSON list of {"box": [x, y], "finger": [x, y]} and, for a rotating slider, "heading" (radians; a
-    file without it means heading 0), other keys kept, with errors that name the entry."""
+    file without it means heading 0), other keys kept, with errors that name the entry. For gym-pusht
+    (a `scene` with a pixel frame), an entry may be {"pusht_state": [ax, ay, bx, by, angle]} instead, as
+    its `obs_type="state"` reports it (px, radians); box, finger and heading are filled in from it."""
     import json
 
     try:
@@ -449,6 +480,9 @@ def load_initial_conditions(path) -> list[dict]:
         raise ValueError(f'{str(path)!r} must hold a JSON list of {{"box": [x, y], "finger": [x, y]}}')
     out = []
     for i, item in enumerate(data):
+        if isinstance(item, dict) and "pusht_state" in item:
+            out.append(_pusht_entry(path, i, item, scene))
+            continue
         try:
             box, finger = [float(v) for v in item["box"]], [float(v) for v in item["finger"]]
             if len(box) != 2 or len(finger) != 2:
@@ -466,6 +500,25 @@ def load_initial_conditions(path) -> list[dict]:
             entry["heading"] = float(item["heading"])
         out.append(entry)
     return out
+
+
+def _pusht_entry(path, i: int, item: dict, scene: Scene | None) -> dict:
+    from lerobot_gcs_push.pusht_env import check_pusht_state
+
+    if scene is None or scene.frame is None:
+        raise ValueError(f"{str(path)!r} entry {i}: a pusht_state is gym-pusht's: use --env_id=gym_pusht/PushT-v0")
+    try:
+        state = check_pusht_state(item["pusht_state"])
+    except ValueError as err:
+        raise ValueError(f"{str(path)!r} entry {i}: {err}") from None
+    pose, finger = scene.frame.pose_finger_of(state)
+    return {
+        **item,
+        "pusht_state": state.tolist(),
+        "box": pose[:2].tolist(),
+        "finger": finger.tolist(),
+        "heading": float(pose[2]),
+    }
 
 
 def _unit_points(sampler: str, seed: int, dims: int) -> Iterator[np.ndarray]:

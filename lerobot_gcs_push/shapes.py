@@ -1,9 +1,11 @@
 """Slider shapes as data: the planar outline of what the finger pushes, in the slider's own frame.
 
 A shape is a union of convex polygons with disjoint interiors (the T is not convex; its bar and stem
-are), with the frame's origin at the centroid, since the quasi-static limit surface is written about
-the centre of mass. The planner reads faces and convex parts from here, the sim builds its collision
-geometry from the parts, and the env scores coverage with `coverage`; none repeats a dimension.
+are), with the frame's origin at the centre of mass, since the quasi-static limit surface is written
+about it: the area centroid for a uniform slider; gym-pusht's T puts its centre of gravity at the plain
+mean of its two boxes' centroids instead (`pivot="parts"`). The planner reads faces and convex parts
+from here, the sim builds its collision geometry from the parts, and the env scores coverage with
+`coverage`; none repeats a dimension.
 """
 
 from __future__ import annotations
@@ -18,10 +20,13 @@ import numpy as np
 @dataclass(frozen=True)
 class SliderShape:
     name: str
-    # Convex polygons, vertices counter-clockwise, in metres, about the shape's centroid.
+    # Convex polygons, vertices counter-clockwise, in metres, about the shape's pivot.
     parts: tuple[tuple[tuple[float, float], ...], ...]
     # The union's outline, counter-clockwise: its edges are the faces a finger can push on.
     outline: tuple[tuple[float, float], ...]
+    # The frame's origin, the centre of mass: "centroid" (of the area) or "parts" (the plain mean of the
+    # convex parts' centroids, gym-pusht's T's centre of gravity).
+    pivot: str = "centroid"
 
     def __post_init__(self) -> None:
         for i, part in enumerate(self.parts):
@@ -31,8 +36,11 @@ class SliderShape:
             raise ValueError(f"{self.name}: the outline must be counter-clockwise")
         if abs(self.area - abs(_signed_area(np.asarray(self.outline)))) > 1e-9:
             raise ValueError(f"{self.name}: the parts' areas do not add up to the outline's")
-        if np.linalg.norm(self.centroid) > 1e-9:
-            raise ValueError(f"{self.name}: the frame's origin must be the centroid, got {self.centroid}")
+        if self.pivot not in PIVOTS:
+            raise ValueError(f"{self.name}: unknown pivot {self.pivot!r}: choose one of {PIVOTS}")
+        origin = self.centroid if self.pivot == "centroid" else _parts_mean(self.parts)
+        if np.linalg.norm(origin) > 1e-9:
+            raise ValueError(f"{self.name}: the frame's origin must be the {self.pivot}'s, got {origin}")
 
     @cached_property
     def area(self) -> float:
@@ -44,7 +52,7 @@ class SliderShape:
 
     @cached_property
     def r_max(self) -> float:
-        """The farthest outline point from the centroid (the limit surface's torque scale)."""
+        """The farthest outline point from the pivot (the limit surface's torque scale)."""
         return float(np.max(np.linalg.norm(np.asarray(self.outline), axis=1)))
 
     @cached_property
@@ -97,11 +105,11 @@ def square(size: float) -> SliderShape:
     return SliderShape("box", (corners,), corners)
 
 
-def tee(bar_length: float) -> SliderShape:
+def tee(bar_length: float, pivot: str = "centroid") -> SliderShape:
     """gym-pusht's T in proportion: the bar is bar_length x bar_length/4, the stem bar_length/4 wide and
-    3/4 bar_length long, hanging from the bar's middle."""
+    3/4 bar_length long, hanging from the bar's middle. `pivot` places the frame's origin (SliderShape)."""
     w, L = bar_length / 4, bar_length
-    # Built with the stem's foot at y = 0, then shifted so the centroid is the origin.
+    # Built with the stem's foot at y = 0, then shifted so the pivot is the origin.
     bar = np.array([(-L / 2, L - w), (L / 2, L - w), (L / 2, L), (-L / 2, L)])
     stem = np.array([(-w / 2, 0.0), (w / 2, 0.0), (w / 2, L - w), (-w / 2, L - w)])
     outline = np.array(
@@ -117,12 +125,22 @@ def tee(bar_length: float) -> SliderShape:
         ]
     )
     areas = np.array([_signed_area(bar), _signed_area(stem)])
-    c = (areas[0] * _polygon_centroid(bar) + areas[1] * _polygon_centroid(stem)) / areas.sum()
+    if pivot == "parts":
+        c = (_polygon_centroid(bar) + _polygon_centroid(stem)) / 2
+    else:
+        c = (areas[0] * _polygon_centroid(bar) + areas[1] * _polygon_centroid(stem)) / areas.sum()
 
     def shifted(poly):
         return tuple((float(x), float(y)) for x, y in poly - c)
 
-    return SliderShape("tee", (shifted(bar), shifted(stem)), shifted(outline))
+    return SliderShape("tee", (shifted(bar), shifted(stem)), shifted(outline), pivot)
+
+
+PIVOTS = ("centroid", "parts")
+
+
+def _parts_mean(parts) -> np.ndarray:
+    return sum(_polygon_centroid(np.asarray(p)) for p in parts) / len(parts)
 
 
 def _signed_area(p: np.ndarray) -> float:

@@ -125,6 +125,7 @@ def _digest(root: Path) -> str:
     return h.hexdigest()
 
 
+@pytest.mark.slow
 def test_worker_count_and_interruption_do_not_change_the_dataset(tmp_path, reference):
     """workers=2 writes the same data as workers=1; a run killed midway and resumed equals both."""
     _, report = reference
@@ -150,6 +151,35 @@ def test_worker_count_and_interruption_do_not_change_the_dataset(tmp_path, refer
     assert (root / "meta/info.json").stat().st_mtime_ns == stamp
     res = subprocess.run(cmd + ["--resume=true", "--seed=1"], capture_output=True, text=True)
     assert res.returncode != 0 and "other settings" in res.stderr and "'seed'" in res.stderr
+
+
+def test_a_merge_holds_each_datasets_episodes_in_turn(reference):
+    """LeRobot's aggregation as `improve` merges its rounds (`merge_datasets`): the reference twice is every
+    stored value of the reference, then every one again with its episode and frame indices continued; a
+    merge already made is kept as it is; a missing input is named."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from lerobot_gcs_push.dataset import merge_datasets
+
+    def table(root: Path):
+        return pa.concat_tables([pq.read_table(f) for f in sorted((root / "data").rglob("*.parquet"))])
+
+    cfg, report = reference
+    twice = merge_datasets([cfg.repo_id, cfg.repo_id], "local/test_gcs_push_twice", desc="test merge")
+    assert _load("local/test_gcs_push_twice").meta.total_episodes == 2 * N
+    one, two = table(Path(report.root)), table(twice)
+    assert two.num_rows == 2 * one.num_rows == 2 * report.frames
+    shift = {"episode_index": N, "index": one.num_rows}
+    for name in one.column_names:
+        values = one.column(name).to_pylist()
+        again = [v + shift[name] for v in values] if name in shift else values
+        assert two.column(name).to_pylist() == values + again, name
+    stamp = (twice / "meta" / "info.json").stat().st_mtime_ns
+    assert merge_datasets([cfg.repo_id], "local/test_gcs_push_twice") == twice
+    assert (twice / "meta" / "info.json").stat().st_mtime_ns == stamp
+    with pytest.raises(FileNotFoundError, match="local/no_such_dataset"):
+        merge_datasets([cfg.repo_id, "local/no_such_dataset"], "local/test_gcs_push_other")
 
 
 def test_bad_settings_are_named(tmp_path, monkeypatch):
@@ -199,6 +229,7 @@ def test_bad_initial_conditions_file_gets_its_own_message(tmp_path, content, nee
     assert not (tmp_path / "ds").exists()
 
 
+@pytest.mark.slow
 def test_lerobot_dataset_viz_reads_a_generated_dataset(reference, tmp_path):
     """LeRobot's own viewer (the `viz` extra, rerun) saves an episode of ours as a recording of it."""
     import shutil

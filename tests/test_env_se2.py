@@ -69,7 +69,8 @@ def test_the_box_env_offers_environment_state_with_heading_zero():
 
 
 def test_registered_scenes_and_workspace():
-    assert (TEE_SCENE.slider, TEE_SCENE.rotates, TEE_SCENE.goal_heading) == ("tee", True, math.pi / 4)
+    # gym-pusht's goal angle pi/4 in its y-down frame is -pi/4 here (y up), not its mirror image.
+    assert (TEE_SCENE.slider, TEE_SCENE.rotates, TEE_SCENE.goal_heading) == ("tee", True, -math.pi / 4)
     assert (SE2_SCENE.slider, SE2_SCENE.rotates) == ("box", True)
     e = gym.make(TEE_ENV_ID, render_size=96).unwrapped
     assert e.scene.slider == "tee" and e.task == "Push the red T onto the green outline."
@@ -247,8 +248,8 @@ def test_success_is_95_percent_coverage():
 
 
 def test_heading_error_is_wrapped():
-    assert TEE_SCENE.heading_error(math.pi / 4 + math.pi) == pytest.approx(-math.pi)
-    assert TEE_SCENE.heading_error(math.pi / 4 - 3 * math.pi / 2) == pytest.approx(math.pi / 2)
+    assert TEE_SCENE.heading_error(-math.pi / 4 + math.pi) == pytest.approx(-math.pi)
+    assert TEE_SCENE.heading_error(-math.pi / 4 - 3 * math.pi / 2) == pytest.approx(math.pi / 2)
 
 
 # --- image -------------------------------------------------------------------------------------------

@@ -131,6 +131,7 @@ def _without_timing(recs):
     return sorted(json.dumps({k: v for k, v in r.items() if k not in TIMING_FIELDS}, sort_keys=True) for r in recs)
 
 
+@pytest.mark.slow
 def test_killed_and_rerun_evaluation_gives_the_same_records(tmp_path, ics_file):
     args = [
         "--policies=[gcs-open-loop,gcs-closed-loop]",
@@ -230,6 +231,7 @@ def _marked(mark: str) -> set[int]:
     return pids
 
 
+@pytest.mark.slow
 def test_worker_processes_leave_when_the_driver_alone_is_killed(tmp_path):
     """`kill PID` or `timeout` signal the driver only; its workers must not wait forever for jobs."""
     mark = f"GCS_PUSH_TEST_{os.getpid()}_{time.monotonic_ns()}"

@@ -134,6 +134,7 @@ def _gcsopt_path(G, source, target):
     return path
 
 
+@pytest.mark.slow
 def test_gcsopt_relaxation_and_rounding(planner, cases):
     gcsopt = pytest.importorskip("gcsopt")
     import cvxpy as cp
@@ -165,6 +166,7 @@ def test_gcsopt_relaxation_and_rounding(planner, cases):
         assert rounded >= plan.cost - EXACT_REL * max(1.0, plan.cost), (ic, rounded, plan.cost)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("i", range(GCSOPT_MICP_CASES))
 def test_gcsopt_micp_matches(planner, cases, i):
     gcsopt = pytest.importorskip("gcsopt")

@@ -113,6 +113,7 @@ def _assert_each_episode_once(root: Path) -> None:
     assert not root.with_name(root.name + ".shards").exists() and not root.with_name(root.name + ".work").exists()
 
 
+@pytest.mark.slow
 def test_ray_and_process_backends_write_the_same_dataset(tmp_path, cluster, reference):
     """2 Ray actors and shards of 2 against 1 process and one shard: the same frames, images and metadata."""
     report = generate(_cfg(tmp_path, "ray", backend="ray", workers=2, shard_size=2))
@@ -121,6 +122,7 @@ def test_ray_and_process_backends_write_the_same_dataset(tmp_path, cluster, refe
     _assert_each_episode_once(Path(report.root))
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_shard_loses_and_duplicates_nothing(tmp_path, cluster, reference):
     """The worker dies after the first episode of the shard [2, 4): Ray restarts it and runs the shard again."""
     trigger = CRASH_DIR / "episode_3"
@@ -131,6 +133,7 @@ def test_a_worker_killed_mid_shard_loses_and_duplicates_nothing(tmp_path, cluste
     _assert_each_episode_once(Path(report.root))
 
 
+@pytest.mark.slow
 def test_a_frame_budget_reached_inside_a_shard_cuts_that_shard(tmp_path, reference):
     """`frames` are reached at episode 1, inside the shard [0, 3): the dataset is the reference's first two
     episodes, and nothing of the shard's third episode or of the shard [3, 4) queued behind it is kept. (The
@@ -145,6 +148,7 @@ def test_a_frame_budget_reached_inside_a_shard_cuts_that_shard(tmp_path, referen
     assert [m["index"] for m in read_episode_metadata(Path(report.root))] == [0, 1]
 
 
+@pytest.mark.slow
 def test_a_killed_driver_resumes_keeping_its_finished_shards(tmp_path, cluster, reference):
     """A CLI driver joins the cluster at its address and is killed once it has shards; the resumed run (another
     shard size and worker count) takes them as they are: their episodes keep the wall times they were run in."""
@@ -174,6 +178,7 @@ def test_a_killed_driver_resumes_keeping_its_finished_shards(tmp_path, cluster, 
             assert meta[episode["index"]]["wall_time_s"] == episode["wall_time_s"], "a finished shard was run again"
 
 
+@pytest.mark.slow
 def test_evaluation_records_match_the_process_pool(tmp_path, cluster):
     ics = tmp_path / "ics.json"
     ics.write_text(
@@ -204,6 +209,7 @@ def test_evaluation_records_match_the_process_pool(tmp_path, cluster):
         np.testing.assert_array_equal(a["box"], b["box"])
 
 
+@pytest.mark.slow
 def test_pools_return_every_result_and_report_a_worker_that_keeps_dying(cluster):
     """Both backends: every result once; a job calling os._exit is retried by Ray, then
     given up, while the process pool gives up at once: an error naming what to do, never a hang."""

@@ -81,7 +81,8 @@ def main() -> None:
                     v = np.r_[1.0, heading]
                     put(vals, fr.moments, np.outer(v, v))
             bounds.append(conic.fix(vals).solve().dual_value)
-        gaps = [(best.cost - b) / best.cost for b in [res.bound, *bounds]]
+        # An uncertified bound (None: relaxation.certify refused the dual point) prints as nan.
+        gaps = [(best.cost - b) / best.cost if b is not None else float("nan") for b in [res.bound, *bounds]]
         plan = _plan_terms(p, best)
         print(
             f"{k:5d} {best.cost:6.2f}  " + "  ".join(f"{g:5.3f}" for g in gaps)

@@ -20,6 +20,8 @@ from lerobot_gcs_push.planner.plan import FREE, PUSH, Schedule, Speeds
 from lerobot_gcs_push.scene import wrap_angle
 
 PUSH_STRAY = 5.0
+# Shares of the way from the slider to its goal where a plan is sought when none reaches the goal.
+WAYPOINTS = (0.5, 0.25)
 # The last metres before a push that follows free motion run along the face's normal at the approach
 # speed. Arriving along its free path, the finger touched the T 5-10 cm from the planned contact and near
 # the goal turned it away; 0.2 m (the box planner's transition buffer) doubled the T's episode time, since
@@ -87,12 +89,29 @@ class ContactExpert:
         pose, finger = plannable(self.planner, info["slider_pose"], info["finger"])
         t0 = time.perf_counter()
         try:
-            plan = self.planner.plan(pose, finger)
+            plan = self._plan(pose, finger)
         finally:
             self.plan_time_s += time.perf_counter() - t0
         self.plans.append(plan)
         self._schedule = plan.schedule(self.fps, self.speeds, self.planner.scene.push_lag_s, APPROACH_M, self._clear)
         self._k = 0
+
+    def _plan(self, pose, finger) -> ContactPlan:
+        """A plan to the goal or, where rounding finds none, to a waypoint part of the way there (the next
+        replan goes on from it). A T by gym-pusht's wall, half a turn from its goal (seed 2027's sixth
+        start), had no plan to the goal, one halfway in 15 s and one a quarter of the way in 10 s."""
+        try:
+            return self.planner.plan(pose, finger)
+        except PlanningError:
+            if not WAYPOINTS:
+                raise
+            goal = self.planner.query(pose, finger)[2]
+        for i, share in enumerate(WAYPOINTS):
+            try:
+                return self.planner.plan(pose, finger, pose + share * (goal - pose))
+            except PlanningError:
+                if i == len(WAYPOINTS) - 1:
+                    raise
 
     def _clear(self, pose, point) -> bool:
         scene = self.planner.scene
@@ -131,3 +150,23 @@ class ContactExpert:
         i = min(self._k, len(sched) - 1)
         at_rest = sched.kinds[i] != PUSH and PUSH in sched.kinds[:i]
         return self.strayed_by(info["slider_pose"]) > cfg.replan_tolerance * (1.0 if at_rest else PUSH_STRAY)
+
+
+class PixelActions:
+    """An expert in metres acting in a target that takes pixel actions (`scene.frame`): its commands are
+    mapped to pixels, everything else (its state from `info`, plans, summaries) is the expert's own.
+    `track(info, point)`, if given, turns the point where the expert wants the finger one action later into
+    the action that puts it there (`pusht_agent.target_for` for gym-pusht's PD agent)."""
+
+    def __init__(self, expert, frame, track=None):
+        self.expert, self.frame, self.track = expert, frame, track
+
+    def __getattr__(self, name):
+        return getattr(self.expert, name)
+
+    def reset(self, obs, info: dict, seed: int | None = None) -> None:
+        self.expert.reset(obs, info, seed)
+
+    def act(self, obs, info: dict) -> np.ndarray:
+        point = self.frame.to_px(self.expert.act(obs, info))
+        return point if self.track is None else self.track(info, point)

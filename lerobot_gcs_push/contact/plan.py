@@ -19,7 +19,9 @@ from lerobot_gcs_push.planner.plan import APPROACH, FREE, PUSH, Schedule, Segmen
 class ContactPlan:
     method: str
     cost: float  # the objective: sum of squared knot-to-knot displacements (m^2), rotation as chord^2 r_max^2
-    lower_bound: float  # certified by the graph relaxation (-inf for the baseline, which certifies nothing)
+    # Certified by the graph relaxation's checked dual (relaxation.certify); None: uncertified (the baseline,
+    # which certifies nothing, or a solve whose dual residual was too large to vouch for its bound).
+    lower_bound: float | None
     solve_time_s: float
     modes: list[str]
     slider_poses: np.ndarray  # (K, 3): x, y, heading at each knot
@@ -32,9 +34,19 @@ class ContactPlan:
     extra: dict = field(default_factory=dict)
 
     @property
-    def gap(self) -> float:
-        """(cost - bound) / cost: how far from optimal the plan can be, at most."""
+    def certified(self) -> bool:
+        return self.lower_bound is not None
+
+    @property
+    def gap(self) -> float | None:
+        """(cost - bound) / cost: how far from optimal the plan can be, at most; None when uncertified."""
+        if self.lower_bound is None:
+            return None
         return float((self.cost - self.lower_bound) / self.cost) if self.cost > 0 else 0.0
+
+    def gap_text(self) -> str:
+        """The gap in per cent, or 'uncertified'."""
+        return "uncertified" if self.gap is None else f"{100 * self.gap:.1f} %"
 
     @property
     def slider_final(self) -> np.ndarray:
@@ -129,6 +141,7 @@ class ContactPlan:
             "method": self.method,
             "cost": self.cost,
             "lower_bound": self.lower_bound,
+            "certified": self.certified,
             "gap": self.gap,
             "solve_time_s": self.solve_time_s,
             "modes": self.modes,

@@ -135,19 +135,34 @@ class ContactPlanner:
         )
         return time.perf_counter() - t0
 
-    def query(self, slider_pose, finger):
-        """(start pose, finger in the slider frame, goal pose, which free pieces hold the finger)."""
-        pose = np.asarray(slider_pose, float)
+    def query(self, slider_pose, finger, goal=None):
+        """(start pose, finger in the slider frame, goal pose, which free pieces hold the finger). `goal`
+        (x, y, heading) in the scene goal's place: a waypoint (its heading taken as given)."""
+        pose, finger = np.asarray(slider_pose, float), np.asarray(finger, float)
+        if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+            raise ValueError(f"slider pose must be three finite numbers [x, y, heading], got {pose.tolist()}")
+        if finger.shape != (2,) or not np.all(np.isfinite(finger)):
+            raise ValueError(f"finger must be two finite numbers [x, y], got {finger.tolist()}")
+        if np.max(np.abs(pose[:2])) > self.model.reach + 1e-9:
+            # A PlanningError, not a ValueError: a closed-loop expert meets sliders knocked out of reach.
+            raise PlanningError(
+                f"slider centre {pose[:2].tolist()} lies outside the workspace |x|,|y| <= {self.model.reach}"
+            )
         c, s = np.cos(pose[2]), np.sin(pose[2])
-        d = np.asarray(finger, float) - pose[:2]
+        d = finger - pose[:2]
         q = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
         allow = np.array([reg.contains(q) for reg in self.regions], float)
         if not allow.any():
             raise ValueError(
-                f"finger {list(finger)} lies in none of the free-space pieces around the slider at {list(pose)} "
-                "(too close to it, or beyond the finger's reach)"
+                f"finger {finger.tolist()} lies in none of the free-space pieces around the slider at "
+                f"{pose.tolist()} (too close to it, or beyond the finger's reach)"
             )
-        goal = np.array([*self.model.goal[:2], self.model.goal_heading_near(pose[2])])
+        if goal is None:
+            goal = np.array([*self.model.goal[:2], self.model.goal_heading_near(pose[2])])
+        else:
+            goal = np.asarray(goal, float)
+            if goal.shape != (3,) or not np.all(np.isfinite(goal)) or np.max(np.abs(goal[:2])) > self.model.reach:
+                raise ValueError(f"goal must be [x, y, heading] within the workspace, got {goal.tolist()}")
         return pose, q, goal, allow
 
     def window(self, pose, goal) -> HeadingWindow | None:
@@ -155,8 +170,9 @@ class ContactPlanner:
             return None
         return HeadingWindow.around(float(pose[2]), float(goal[2]), self.window_margin)
 
-    def plan(self, slider_pose, finger) -> ContactPlan:
-        pose, q, goal, allow = self.query(slider_pose, finger)
+    def plan(self, slider_pose, finger, goal=None) -> ContactPlan:
+        """The plan from `slider_pose` and `finger` to the scene's goal (or to `goal`, a waypoint)."""
+        pose, q, goal, allow = self.query(slider_pose, finger, goal)
         capacity = self.layers * (self.knots - 1) * self.max_step
         if abs(goal[2] - pose[2]) > capacity:
             raise PlanningError(
@@ -208,7 +224,8 @@ class ContactPlanner:
                 break
         t2 = time.perf_counter()
         if best is None:
-            raise PlanningError(f"no sampled path's restriction solved ({tried} tried, bound {res.bound:.4f})")
+            bound = "uncertified" if res.bound is None else f"{res.bound:.4f}"
+            raise PlanningError(f"no sampled path's restriction solved ({tried} tried, bound {bound})")
         return self._plan(
             "relaxation",
             best,
@@ -221,6 +238,7 @@ class ContactPlanner:
                 "relaxation_s": t1 - t0,
                 "rounding_s": t2 - t1,
                 "relaxation_status": res.status,
+                "dual_residual": res.dual_residual,
                 "fallback": fallback,
                 "graph_path": {"frees": list(best.path.frees), "contacts": list(best.path.contacts)},
             },
@@ -252,7 +270,7 @@ class ContactPlanner:
         dt = time.perf_counter() - t0
         if not r.success:
             raise PlanningError("the baseline's SNOPT run found no feasible plan")
-        return self._plan("baseline", r, pose, goal, -np.inf, dt, 1, {}, graph)
+        return self._plan("baseline", r, pose, goal, None, dt, 1, {}, graph)
 
     def _restrict(self, path: Path, pose, q, goal, window, graph=None, forms=None):
         """The path's restriction, SNOPT from the straight-line guess (on the planner's graph by default)."""

@@ -1,0 +1,34 @@
+"""gym-pusht's agent under its PD control, and the target that lands it on a point one action later.
+
+The agent is a kinematic circle: contact never moves it, only its controller does. Each action holds a
+target u for 10 physics substeps of 0.01 s, each `v += (kp (u - p) - kv v) dt; p += v dt` (gym-pusht's
+`step`, then pymunk's integration), so one action maps (p, v) to a linear function of (p, v, u) per axis.
+Inverted, it gives the target after which the agent stands exactly where a plan wants it: commanded with
+the plan's points themselves, the agent trails them by kv / kp = 0.2 s of motion and cuts its corners.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+KP, KV = 100.0, 20.0  # gym-pusht's PD gains
+DT, SUBSTEPS = 0.01, 10  # its physics step and substeps per action (10 actions a second)
+
+
+def step_map(kp: float = KP, kv: float = KV, dt: float = DT, substeps: int = SUBSTEPS) -> np.ndarray:
+    """The 2 x 3 matrix taking (p, v, u) of one axis to (p, v) one action later."""
+    m = np.eye(3)  # rows: p, v, u as linear forms of the start's (p, v, u)
+    for _ in range(substeps):
+        v = m[1] + (kp * (m[2] - m[0]) - kv * m[1]) * dt
+        m = np.stack([m[0] + v * dt, v, m[2]])
+    return m[:2]
+
+
+_MAP = step_map()
+
+
+def target_for(position, velocity, goal) -> np.ndarray:
+    """The target (px) that puts the agent, at `position` with `velocity` (px, px/s), at `goal` one action
+    later."""
+    (a, b, c) = _MAP[0]
+    return (np.asarray(goal, float) - a * np.asarray(position, float) - b * np.asarray(velocity, float)) / c

@@ -1,0 +1,187 @@
+"""gym-pusht's own env as a target: the frame maps against gym-pusht's geometry and physics (pymunk, the
+other simulator), the resets that land on a reported state, the planner's limit surface against the
+block's measured rotation, and the closed-loop expert driving it to gym-pusht's success."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import lerobot_gcs_push  # noqa: F401
+from lerobot_gcs_push.contact.model import PushModel
+from lerobot_gcs_push.pusht_env import GymPushTTarget, check_pusht_state
+from lerobot_gcs_push.pusht_frame import COG_PX, GOAL_STATE, PixelFrame, reset_to_state
+from lerobot_gcs_push.registration import PUSHT_ENV_ID, SCENES, make_env
+
+gym_pusht = pytest.importorskip("gym_pusht")
+SCENE = SCENES[PUSHT_ENV_ID]
+FRAME = PixelFrame()
+
+
+@pytest.fixture(scope="module")
+def raw():
+    """gym-pusht's env itself, unwrapped, state observations."""
+    env = gym.make(PUSHT_ENV_ID, obs_type="state", render_mode="rgb_array", disable_env_checker=True)
+    yield env.unwrapped
+    env.close()
+
+
+@pytest.fixture(scope="module")
+def target():
+    env = make_env(PUSHT_ENV_ID, obs_type="state")
+    yield env
+    env.close()
+
+
+def test_metres_and_pixels_map_both_ways():
+    rng = np.random.default_rng(0)
+    uv = rng.uniform(0, 512, size=(20, 2))
+    np.testing.assert_allclose(FRAME.to_px(FRAME.to_m(uv)), uv, atol=1e-9)
+    # By hand: the screen's centre is the origin, 60 px right is +1 m, 60 px down is -1 m (y flips).
+    np.testing.assert_allclose(FRAME.to_m([[256, 256], [316, 256], [256, 316]]), [[0, 0], [1, 0], [0, -1]])
+    for _ in range(20):
+        block = np.array([*rng.uniform(60, 450, 2), rng.uniform(0, 2 * math.pi)])
+        back = FRAME.block_of_pose(FRAME.pose_of_block(block))
+        np.testing.assert_allclose(back[:2], block[:2], atol=1e-9)
+        assert math.isclose(back[2], block[2], abs_tol=1e-12)
+
+
+def test_the_shapes_outline_lands_on_gym_pushts_own_vertices(raw):
+    """gym-pusht's T at a reported state, its vertices as pymunk places them (`get_keypoints`), against this
+    project's T (about gym-pusht's centre of gravity) at the mapped pose, mapped back to pixels."""
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        raw.reset(options={"reset_to_state": [*rng.uniform(50, 450, 4), rng.uniform(-math.pi, math.pi)]})
+        keypoints = raw.get_keypoints(raw._block_shapes)  # (8, 2) world px, bar then stem
+        pose = FRAME.pose_of_block([*raw.block.position, raw.block.angle])
+        ours = np.vstack([FRAME.to_px(p) for p in SCENE.shape.world_parts(pose)])
+        for k in keypoints:
+            assert np.min(np.linalg.norm(ours - k, axis=1)) < 1e-6, k
+
+
+def test_the_goal_is_gym_pushts_goal_and_coverage_agrees_with_its_own(raw):
+    """The scene's goal pose is gym-pusht's goal mapped (coverage 1), and the shape's exact clipping gives
+    the coverage gym-pusht computes with shapely after a step, at random poses."""
+    np.testing.assert_allclose(SCENE.goal_pose, FRAME.pose_of_block(GOAL_STATE))
+    assert SCENE.coverage(SCENE.goal_pose) == pytest.approx(1.0)
+    np.testing.assert_allclose(SCENE.goal_pose[2], -math.pi / 4)  # the mirror of GOAL_STATE's pi / 4
+    rng = np.random.default_rng(2)
+    seen = []
+    for _ in range(12):
+        near = np.array([*rng.normal(GOAL_STATE[:2], 15), GOAL_STATE[2] + rng.normal(0, 0.2)])
+        raw.reset(options={"reset_to_state": reset_to_state([10.0, 10.0, *near])})
+        _, _, _, _, info = raw.step(np.array([10.0, 10.0]))  # the agent far away: the block stays put
+        pose = FRAME.pose_of_block(info["block_pose"])
+        assert SCENE.coverage(pose) == pytest.approx(info["coverage"], abs=1e-9)
+        seen.append(info["coverage"])
+    assert min(seen) < 0.9 < max(seen)  # the poses span both sides of the success rule
+
+
+def test_a_reset_to_a_reported_state_reports_that_state(raw, target):
+    """gym-pusht's `reset_to_state` moves the block by (I - R(angle)) (0, 45) px; the target lands on it."""
+    for seed in range(10):
+        reported, _ = raw.reset(seed=seed)
+        moved, _ = raw.reset(options={"reset_to_state": reported})
+        if abs(math.sin(reported[4] / 2)) > 0.1:
+            assert np.linalg.norm(moved[2:4] - reported[2:4]) > 1.0  # why the map is needed
+        obs, info = target.reset(options={"pusht_state": reported.tolist()})
+        np.testing.assert_allclose(obs, reported, atol=1e-9)
+        np.testing.assert_allclose(info["pusht_state"], reported, atol=1e-9)
+        # The same start in metres (an initial-condition file's box, finger and heading).
+        obs2, _ = target.reset(options={"box": info["box"], "finger": info["finger"], "heading": info["heading"]})
+        np.testing.assert_allclose(obs2, reported, atol=1e-6)
+
+
+def test_a_seed_alone_is_gym_pushts_own_reset(raw, target):
+    for seed in (0, 7, 123):
+        a, _ = raw.reset(seed=seed)
+        b, _ = target.reset(seed=seed)
+        np.testing.assert_array_equal(a, b)
+
+
+def test_info_carries_the_state_in_metres(target):
+    obs, info = target.reset(seed=5)
+    pose, finger = FRAME.pose_finger_of(obs)
+    np.testing.assert_allclose(info["slider_pose"], pose)
+    np.testing.assert_allclose(info["finger"], finger)
+    assert info["box_goal_distance"] == pytest.approx(np.linalg.norm(pose[:2] - SCENE.goal_array))
+    obs, reward, terminated, truncated, info = target.step(obs[:2])
+    assert info["sim_time_s"] == pytest.approx(0.1) and not terminated and not truncated
+    assert reward == pytest.approx(min(info["coverage"] / 0.95, 1.0))
+
+
+def test_bad_input_is_refused_by_name(target):
+    with pytest.raises(ValueError, match="pusht_state"):
+        check_pusht_state([1, 2, 3])
+    with pytest.raises(ValueError, match="pusht_state must be finite"):
+        target.reset(options={"pusht_state": [1, 2, 3, 4, float("nan")]})
+    with pytest.raises(ValueError, match="action must be finite"):
+        target.step([float("nan"), 0.0])
+    with pytest.raises(ValueError, match="fps"):
+        GymPushTTarget(fps=20)
+    with pytest.raises(ValueError, match="disturbances"):
+        GymPushTTarget(disturbances=True)
+
+
+def test_the_limit_surface_is_the_blocks_mass_matrix_about_its_centre_of_gravity(raw):
+    """The block is first order and contact frictionless, so a push along the stem's side turns it by
+    (lever x normal) / c^2 per unit of travel with c^2 = I / m. The planner's model (kappa = 1 / c^2 about
+    its frame's origin, the centre of gravity) against gym-pusht's block, pushed slowly at three heights."""
+    model = PushModel.from_scene(SCENE)
+    assert model.kappa == pytest.approx(1 / (3000 / 60**2))
+    for local_y in (60.0, 90.0, 110.0):
+        # The T upright (angle 0): the stem's left side at local x = -15; the agent's centre 15 px off it.
+        raw.reset(options={"reset_to_state": [256 - 15 - 15.5, 200 + local_y, 256.0, 200.0, 0.0]})
+        start = np.array([*raw.block.position, raw.block.angle])
+        agent = np.array(raw.agent.position)
+        for k in range(1, 9):  # 8 px at 10 px/s
+            raw.step(agent + [k * 1.0, 0.0])
+        for _ in range(5):
+            raw.step(agent + [8.0, 0.0])
+        end = np.array([*raw.block.position, raw.block.angle])
+        cog0 = start[:2] + COG_PX
+        c, s = math.cos(end[2]), math.sin(end[2])
+        cog1 = end[:2] + np.array([-s * COG_PX[1], c * COG_PX[1]])
+        travel = (cog1 - cog0)[0] / 60.0
+        assert travel > 0.02  # it moved
+        # In metres, y up: the contact lever from the centre of gravity, the push along +x.
+        lever = np.array([-15.0, -(local_y - COG_PX[1])]) / 60.0
+        predicted = model.kappa * (lever[0] * 0.0 - lever[1] * 1.0)  # (lever x +x) per metre of travel
+        measured = -(end[2] - start[2]) / travel  # heading = -angle
+        assert measured == pytest.approx(predicted, rel=0.08), (local_y, measured, predicted)
+
+
+def test_the_steered_agent_lands_where_it_is_sent_in_gym_pusht(raw):
+    """The agent's one-action map (derived from the PD law) inverted: gym-pusht's own agent, from moving
+    starts, lands on random points within 1e-6 px; commanded with the point itself it falls short by its lag."""
+    from lerobot_gcs_push.pusht_agent import target_for
+
+    rng = np.random.default_rng(3)
+    raw.reset(options={"reset_to_state": [256.0, 256.0, 60.0, 60.0, 0.0]})
+    raw.step(np.array([300.0, 200.0]))  # moving now
+    for _ in range(10):
+        goal = np.array(raw.agent.position) + rng.uniform(-25, 25, 2)
+        raw.step(target_for(np.array(raw.agent.position), np.array(raw.agent.velocity), goal))
+        np.testing.assert_allclose(np.array(raw.agent.position), goal, atol=1e-6)
+    start = np.array(raw.agent.position)
+    raw.step(start + [20.0, 0.0])
+    assert np.array(raw.agent.position)[0] - start[0] < 16.0  # the plain command: lag
+
+
+@pytest.mark.slow
+def test_the_closed_loop_expert_succeeds_in_gym_pusht():
+    """Three of gym-pusht's own resets (seeds no choice used), the expert through contact closed loop:
+    success by gym-pusht's rule (its shapely coverage > 0.95) within its 300 steps, the actions in px."""
+    from lerobot_gcs_push.expert import ExpertConfig, make_expert
+    from lerobot_gcs_push.rollout import rollout
+
+    env = make_env(PUSHT_ENV_ID, obs_type="state")
+    expert = make_expert(env.scene, env.fps, ExpertConfig(mode="closed-loop"))
+    for seed in (100, 101, 102):
+        actions: list = []
+        res = rollout(env, expert, seed=seed, on_step=lambda o, a, i, out=actions: out.append(a))
+        assert res["success"] and res["coverage"] > 0.95 and res["sim_time_s"] <= 30.0, (seed, res["coverage"])
+        acts = np.array(actions)
+        assert acts.min() >= -1.0 and acts.max() <= 513.0  # pixels, not metres
+        assert np.ptp(acts) > 50
