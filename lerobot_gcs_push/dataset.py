@@ -142,13 +142,7 @@ class GenerateConfig:
             raise ValueError(f"fps must divide {per_s}, got {self.fps}")
         if ics:  # refused before any worker starts, each entry named
             for i, ic in enumerate(ics):
-                scene.validate_state(
-                    ic["box"],
-                    ic["finger"],
-                    heading=ic.get("heading", 0.0),
-                    what=f"initial condition {i}",
-                    allow_overlap=scene.frame is not None,  # gym-pusht's own resets may overlap
-                )
+                scene.validate_start(ic, f"initial condition {i}")
         if self.frames is not None and self.frames < 1:
             raise ValueError(f"frames must be >= 1, got {self.frames}")
         if self.shard_size < 1:

@@ -234,13 +234,7 @@ def initial_conditions(cfg: EvaluateConfig) -> list[dict]:
     if cfg.initial_conditions:
         ics = load_initial_conditions(cfg.initial_conditions, scene)
         for i, ic in enumerate(ics):
-            scene.validate_state(
-                ic["box"],
-                ic["finger"],
-                heading=ic.get("heading", 0.0),
-                what=f"initial condition {i}",
-                allow_overlap=scene.frame is not None,  # gym-pusht's own resets may overlap
-            )
+            scene.validate_start(ic, f"initial condition {i}")
         return ics
     return [
         ic.to_json()
