@@ -31,14 +31,13 @@ import numpy as np
 
 from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.pusht_dataset import PUSHT_FEATURE_KEYS, PushTFrames, pusht_features
-from lerobot_gcs_push.registration import ENV_ID, PUSHT_ENV_ID, SCENES
+from lerobot_gcs_push.registration import ENV_ID, PUSHT_ENV_ID, SCENES, sample_starts
 from lerobot_gcs_push.scene import (
     Disturbances,
     Scene,
     check_sampler,
     episode_seed,
     load_initial_conditions,
-    sample_initial_conditions,
 )
 
 EPISODES_META = "meta/gcs_push_episodes.jsonl"
@@ -434,9 +433,7 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
         ics = [{k: ic[k] for k in keys if k in ic} for ic in load_initial_conditions(cfg.initial_conditions, scene)]
     else:
         max_attempts = int(np.ceil(cfg.episodes * cfg.max_attempts_factor)) + 10
-        ics = [
-            ic.to_json() for ic in sample_initial_conditions(scene, max_attempts, seed=cfg.seed, sampler=cfg.sampler)
-        ]
+        ics = [ic.to_json() for ic in sample_starts(scene, max_attempts, seed=cfg.seed, sampler=cfg.sampler)]
     finished = {s["start"]: s for s in map(_read_shard, shards.glob("shard_*")) if s is not None}
     bar = _progress(cfg)
     failures = 0

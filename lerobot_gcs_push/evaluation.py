@@ -24,13 +24,12 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_gcs_push.files import atomic_path
-from lerobot_gcs_push.registration import ENV_ID, SCENES
+from lerobot_gcs_push.registration import ENV_ID, SCENES, sample_starts
 from lerobot_gcs_push.scene import (
     TASK,
     check_sampler,
     episode_seed,
     load_initial_conditions,
-    sample_initial_conditions,
 )
 from lerobot_gcs_push.success import success_measures
 
@@ -236,10 +235,7 @@ def initial_conditions(cfg: EvaluateConfig) -> list[dict]:
         for i, ic in enumerate(ics):
             scene.validate_start(ic, f"initial condition {i}")
         return ics
-    return [
-        ic.to_json()
-        for ic in sample_initial_conditions(scene, cfg.num_initial_conditions, seed=cfg.seed, sampler=cfg.sampler)
-    ]
+    return [ic.to_json() for ic in sample_starts(scene, cfg.num_initial_conditions, seed=cfg.seed, sampler=cfg.sampler)]
 
 
 # --- rollouts, in worker processes --------------------------------------------------------------------

@@ -8,8 +8,17 @@ import math
 import gymnasium as gym
 import numpy as np
 
-from lerobot_gcs_push.pusht_frame import ARENA_PX, reset_to_state
-from lerobot_gcs_push.scene import Scene
+from lerobot_gcs_push.pusht_frame import (
+    ARENA_PX,
+    BAR_PX,
+    COG_PX,
+    GOAL_STATE,
+    PX_PER_M,
+    PixelFrame,
+    check_pusht_state,
+    reset_to_state,
+)
+from lerobot_gcs_push.scene import InitialCondition, Scene, episode_seed
 
 GYM_PUSHT_ID = "gym_pusht/PushT-v0"
 GYM_PUSHT_FPS = 10  # gym-pusht's control rate: 10 physics substeps of 0.01 s per action
@@ -75,8 +84,6 @@ class GymPushTTarget(gym.Env):
     ):
         import gym_pusht  # noqa: F401  (registers gym_pusht/PushT-v0)
 
-        from lerobot_gcs_push.registration import SCENES
-
         if fps != GYM_PUSHT_FPS:
             raise ValueError(f"fps: gym-pusht runs at {GYM_PUSHT_FPS} actions a second, got {fps}")
         if disturbances:
@@ -85,7 +92,7 @@ class GymPushTTarget(gym.Env):
             raise ValueError(f"max_sim_time_s must be positive, got {max_sim_time_s}")
         if success_coverage not in (None, 0.95):
             raise ValueError(f"success_coverage: gym-pusht's rule is coverage > 0.95, got {success_coverage}")
-        self.scene = scene if scene is not None else SCENES[GYM_PUSHT_ID]
+        self.scene = scene if scene is not None else pusht_scene()
         self.frame = self.scene.frame
         self.fps, self.obs_type, self.render_mode = GYM_PUSHT_FPS, obs_type, render_mode
         self._max_episode_steps = math.ceil(max_sim_time_s * self.fps - 1e-9)  # LeRobot's eval reads this
@@ -167,24 +174,9 @@ class GymPushTTarget(gym.Env):
         }
 
 
-def check_pusht_state(state) -> np.ndarray:
-    """gym-pusht's state [agent u, v, block u, v, angle] as floats, or a ValueError naming the field."""
-    try:
-        arr = np.asarray(state, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"pusht_state must be [agent_x, agent_y, block_x, block_y, angle], got {state!r}") from None
-    if arr.shape != (5,):
-        raise ValueError(f"pusht_state must be [agent_x, agent_y, block_x, block_y, angle], got {state!r}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"pusht_state must be finite, got {arr.tolist()}")
-    return arr
-
-
 def reset_states(scene: Scene, n: int, seed: int) -> list:
     """The first `n` of gym-pusht's own resets from seeds of `seed` (`scene.episode_seed`), as initial
     conditions: the start in metres and gym-pusht's state vector, which a reset lands on exactly."""
-    from lerobot_gcs_push.scene import InitialCondition, episode_seed
-
     env = GymPushTTarget(obs_type="state", scene=scene)
     out = []
     for i in range(n):
@@ -199,3 +191,31 @@ def reset_states(scene: Scene, n: int, seed: int) -> list:
         )
     env.close()
     return out
+
+
+def pusht_scene() -> Scene:
+    """gym-pusht's facts in metres (../shared/design/pusht-notes.md has them measured): its T about its
+    centre of gravity, a first-order block under frictionless contact (the limit surface of its mass
+    matrix, sqrt(I / m) = sqrt(3000) px), the agent's 15 px radius and its PD lag (kv / kp = 0.2 s, as
+    push_lag_s = box_damping / (finger_mass kp)), the goal, starts anywhere gym-pusht's resets put them
+    (centres of gravity u in [100, 400), v in [145, 445) px; agents in [50, 450) px) and its 30 s."""
+    frame = PixelFrame()
+    goal = frame.pose_of_block(GOAL_STATE)
+    return Scene(
+        slider="tee",
+        rotates=True,
+        tee_bar_length=BAR_PX / PX_PER_M,
+        slider_pivot="parts",
+        limit_surface_radius=math.sqrt(3000.0) / PX_PER_M,
+        finger_radius=15.0 / PX_PER_M,
+        finger_box_friction=0.0,
+        box_damping=20.0,
+        kp=100.0,
+        kd=20.0,
+        goal=(float(goal[0]), float(goal[1])),
+        goal_heading=float(goal[2]),
+        box_init_half_width=(400.0 + COG_PX[1] - 256.0) / PX_PER_M,
+        finger_init_half_width=200.0 / PX_PER_M,
+        timeout_s=GYM_PUSHT_STEPS / GYM_PUSHT_FPS,
+        frame=frame,
+    )

@@ -16,8 +16,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lerobot_gcs_push.scene import wrap_angle
-
 # gym-pusht's T: bar 120 x 30 px, stem 30 x 90 px; 60 px to the metre makes it this project's 2 m T exactly.
 PX_PER_M = 60.0
 BAR_PX = 120.0
@@ -45,10 +43,10 @@ class PixelFrame:
 
     def pose_of_block(self, block) -> np.ndarray:
         """gym-pusht's block (origin u, v in px, angle) as this project's slider pose (x, y of the centre of
-        gravity in metres, heading in [-pi, pi))."""
+        gravity in metres, heading in [-pi, pi])."""
         u, v, a = (float(b) for b in block)
         cog = np.array([u, v]) + _rot(a) @ COG_PX
-        return np.array([*self.to_m(cog), wrap_angle(-a)])
+        return np.array([*self.to_m(cog), math.remainder(-a, 2 * math.pi)])
 
     def block_of_pose(self, pose) -> np.ndarray:
         """The inverse of `pose_of_block`: (u, v, angle) with the angle in [0, 2 pi), as gym-pusht reports it."""
@@ -80,3 +78,16 @@ def reset_to_state(state) -> list[float]:
 def _rot(a: float) -> np.ndarray:
     c, s = math.cos(a), math.sin(a)
     return np.array([[c, -s], [s, c]])
+
+
+def check_pusht_state(state) -> np.ndarray:
+    """gym-pusht's state [agent u, v, block u, v, angle] as floats, or a ValueError naming the field."""
+    try:
+        arr = np.asarray(state, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"pusht_state must be [agent_x, agent_y, block_x, block_y, angle], got {state!r}") from None
+    if arr.shape != (5,):
+        raise ValueError(f"pusht_state must be [agent_x, agent_y, block_x, block_y, angle], got {state!r}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"pusht_state must be finite, got {arr.tolist()}")
+    return arr

@@ -12,8 +12,8 @@ import math
 
 import gymnasium as gym
 
-from lerobot_gcs_push.pusht_frame import BAR_PX, COG_PX, GOAL_STATE, PX_PER_M, PixelFrame
-from lerobot_gcs_push.scene import Scene
+from lerobot_gcs_push.pusht_env import GymPushTTarget, pusht_scene, reset_states
+from lerobot_gcs_push.scene import HARD_SAMPLERS, InitialCondition, Scene, sample_initial_conditions
 
 ENV_ID = "GcsPushBox-v0"  # the paper's box, which cannot turn
 SE2_ENV_ID = "GcsPushBoxSE2-v0"  # the same box on a yaw joint: position and heading to reach
@@ -21,48 +21,18 @@ TEE_ENV_ID = "GcsPushT-v0"  # gym-pusht's T in Drake, turned to gym-pusht's goal
 PUSHT_ENV_ID = "gym_pusht/PushT-v0"  # gym-pusht's own env (registered by gym_pusht), driven as a target
 
 
-def _pusht_scene() -> Scene:
-    """gym-pusht's facts in metres (../shared/design/pusht-notes.md has them measured): its T about its
-    centre of gravity, a first-order block under frictionless contact (the limit surface of its mass
-    matrix, sqrt(I / m) = sqrt(3000) px), the agent's 15 px radius and its PD lag (kv / kp = 0.2 s, as
-    push_lag_s = box_damping / (finger_mass kp)), the goal, starts anywhere gym-pusht's resets put them
-    (centres of gravity u in [100, 400), v in [145, 445) px; agents in [50, 450) px) and its 30 s."""
-    frame = PixelFrame()
-    goal = frame.pose_of_block(GOAL_STATE)
-    return Scene(
-        slider="tee",
-        rotates=True,
-        tee_bar_length=BAR_PX / PX_PER_M,
-        slider_pivot="parts",
-        limit_surface_radius=math.sqrt(3000.0) / PX_PER_M,
-        finger_radius=15.0 / PX_PER_M,
-        finger_box_friction=0.0,
-        box_damping=20.0,
-        kp=100.0,
-        kd=20.0,
-        goal=(float(goal[0]), float(goal[1])),
-        goal_heading=float(goal[2]),
-        box_init_half_width=(400.0 + COG_PX[1] - 256.0) / PX_PER_M,
-        finger_init_half_width=200.0 / PX_PER_M,
-        timeout_s=30.0,
-        frame=frame,
-    )
-
-
 SCENES = {
     ENV_ID: Scene(),
     SE2_ENV_ID: Scene(slider="box", rotates=True, goal_heading=0.0),
     # Until 2026-12-05 the goal heading was +pi/4, gym-pusht's number in a y-up frame: its mirror image.
     TEE_ENV_ID: Scene(slider="tee", rotates=True, goal_heading=-math.pi / 4),
-    PUSHT_ENV_ID: _pusht_scene(),
+    PUSHT_ENV_ID: pusht_scene(),
 }
 
 
 def make_env(env_id: str, **kwargs):
     """The env of a registered id, unwrapped (the rollouts read `.scene` and `.fps` off it)."""
     if env_id == PUSHT_ENV_ID:
-        from lerobot_gcs_push.pusht_env import GymPushTTarget
-
         return GymPushTTarget(**kwargs)
     return gym.make(env_id, **kwargs).unwrapped
 
@@ -80,3 +50,11 @@ def register_envs() -> None:
         if env_id not in gym.envs.registry and env_id != PUSHT_ENV_ID:
             kwargs = {} if env_id == ENV_ID else {"scene": scene}
             gym.register(id=env_id, entry_point="lerobot_gcs_push.env:GcsPushBoxEnv", kwargs=kwargs)
+
+
+def sample_starts(scene: Scene, n: int, seed: int = 0, sampler: str = "sobol") -> list[InitialCondition]:
+    """The first `n` starts of a seeded stream: gym-pusht's own resets for a scene with its pixel frame
+    (but for the box's hard families, which it refuses), else `scene.sample_initial_conditions`."""
+    if scene.frame is not None and sampler not in HARD_SAMPLERS:
+        return reset_states(scene, n, seed)
+    return sample_initial_conditions(scene, n, seed=seed, sampler=sampler)

@@ -353,7 +353,7 @@ def sample_initial_conditions(
     `collides(box, finger)` defaults to the exact sphere-box distance; the env passes Drake's query.
     The i-th condition depends only on the seed and i, so a prefix of a longer list is the shorter list.
 
-    A target with its own resets (gym-pusht: `scene.frame`) draws them instead, from seeds of `seed`.
+    A target with its own resets (gym-pusht) draws them instead: `registration.sample_starts`.
 
     A rotating slider (`scene.rotates`) adds a fifth coordinate, its heading, uniform in [-pi, pi) (from
     the same Sobol or uniform stream), and `collides(box, finger, heading)` gets it. The hard families
@@ -362,10 +362,6 @@ def sample_initial_conditions(
     if n < 0:
         raise ValueError(f"number of initial conditions must be >= 0, got {n}")
     check_sampler(sampler)
-    if scene.frame is not None and sampler not in HARD_SAMPLERS:
-        from lerobot_gcs_push.pusht_env import reset_states  # gym-pusht's starts are its own resets'
-
-        return reset_states(scene, n, seed)
     if collides is None:
         collides = lambda b, f, h=0.0: scene.finger_box_gap(b, f, h) < 0  # noqa: E731
     out: list[InitialCondition] = []
@@ -510,7 +506,7 @@ def load_initial_conditions(path, scene: Scene | None = None) -> list[dict]:
 
 
 def _pusht_entry(path, i: int, item: dict, scene: Scene | None) -> dict:
-    from lerobot_gcs_push.pusht_env import check_pusht_state
+    from lerobot_gcs_push.pusht_frame import check_pusht_state
 
     if scene is None or scene.frame is None:
         raise ValueError(f"{str(path)!r} entry {i}: a pusht_state is gym-pusht's: use --env_id=gym_pusht/PushT-v0")

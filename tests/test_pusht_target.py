@@ -10,8 +10,8 @@ import pytest
 
 import lerobot_gcs_push  # noqa: F401
 from lerobot_gcs_push.contact.model import PushModel
-from lerobot_gcs_push.pusht_env import GymPushTTarget, check_pusht_state
-from lerobot_gcs_push.pusht_frame import COG_PX, GOAL_STATE, PixelFrame, reset_to_state
+from lerobot_gcs_push.pusht_env import GymPushTTarget
+from lerobot_gcs_push.pusht_frame import COG_PX, GOAL_STATE, PixelFrame, check_pusht_state, reset_to_state
 from lerobot_gcs_push.registration import PUSHT_ENV_ID, SCENES, make_env
 
 gym_pusht = pytest.importorskip("gym_pusht")
@@ -98,6 +98,21 @@ def test_a_seed_alone_is_gym_pushts_own_reset(raw, target):
         a, _ = raw.reset(seed=seed)
         b, _ = target.reset(seed=seed)
         np.testing.assert_array_equal(a, b)
+
+
+def test_starts_from_a_seed_are_gym_pushts_resets_and_land_exactly(raw, target):
+    """`--seed` alone: the evaluation's and the generator's starts are gym-pusht's own resets (its
+    RandomState from each episode's seed), and a reset to a start's pusht_state reports it to the bit."""
+    from lerobot_gcs_push.registration import sample_starts
+    from lerobot_gcs_push.scene import episode_seed
+
+    starts = sample_starts(SCENE, 4, seed=9)
+    for i, ic in enumerate(starts):
+        reported, _ = raw.reset(seed=episode_seed(9, i))
+        np.testing.assert_array_equal(ic.pusht_state, reported)
+        np.testing.assert_allclose([*ic.box, ic.heading], FRAME.pose_of_block(reported[2:]))
+        obs, _ = target.reset(options={"pusht_state": list(ic.pusht_state)})
+        np.testing.assert_allclose(obs, reported, atol=1e-9)
 
 
 def test_info_carries_the_state_in_metres(target):
