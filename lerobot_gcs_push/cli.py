@@ -9,7 +9,6 @@ only maps commands to configs and prints reports; the work lives in the modules 
 from __future__ import annotations
 
 import json
-import math
 import os
 import sys
 from collections.abc import Callable
@@ -19,7 +18,7 @@ from lerobot_gcs_push.active import CollectConfig
 from lerobot_gcs_push.dataset import GenerateConfig
 from lerobot_gcs_push.evaluation import EvaluateConfig
 from lerobot_gcs_push.improve import ImproveConfig
-from lerobot_gcs_push.scene import Scene, load_initial_conditions
+from lerobot_gcs_push.scene import Scene, is_finite_number, load_initial_conditions
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")  # nothing here may reach the network unless asked to
 
@@ -50,7 +49,7 @@ class PlanConfig:
         from lerobot_gcs_push.rollout import check_env_id
 
         check_method(self.method)
-        if isinstance(self.heading, bool) or not _is_finite_number(self.heading):
+        if isinstance(self.heading, bool) or not is_finite_number(self.heading):
             raise ValueError(f"heading must be a finite number of radians, got {_plain(self.heading)!r}")
         self.heading = float(self.heading)
         if self.heading != 0.0 and not SCENES[check_env_id(self.env_id)].rotates:
@@ -172,13 +171,6 @@ def _bound_text(plan) -> str:
     if plan.lower_bound is None:
         return "lower bound uncertified: the relaxation's dual residual was too large to vouch for it"
     return f"certified lower bound {plan.lower_bound:.4f}, gap {plan.gap_text()}"
-
-
-def _is_finite_number(value) -> bool:
-    try:
-        return math.isfinite(float(value))
-    except (TypeError, ValueError):
-        return False
 
 
 def _plain(value):

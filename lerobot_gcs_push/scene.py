@@ -251,7 +251,7 @@ class Scene:
         inside the slider is a valid start (gym-pusht's resets draw such starts)."""
         box = _vector2(box, f"{what}: box")
         finger = _vector2(finger, f"{what}: finger")
-        if not _is_finite_number(heading):
+        if not is_finite_number(heading):
             raise ValueError(f"{what}: heading must be a finite number of radians, got {heading!r}")
         if heading != 0.0 and not self.rotates:
             raise ValueError(f"{what}: heading {heading} given, but this scene's slider cannot rotate")
@@ -281,7 +281,7 @@ class Scene:
         return float(np.linalg.norm(np.asarray(box, float) - self.goal_array))
 
 
-def _is_finite_number(value) -> bool:
+def is_finite_number(value) -> bool:
     try:
         return math.isfinite(float(value))
     except (TypeError, ValueError):
@@ -496,7 +496,7 @@ def load_initial_conditions(path, scene: Scene | None = None) -> list[dict]:
             ) from None
         entry = {**item, "box": box, "finger": finger}
         if "heading" in item:
-            if isinstance(item["heading"], bool) or not _is_finite_number(item["heading"]):
+            if isinstance(item["heading"], bool) or not is_finite_number(item["heading"]):
                 raise ValueError(
                     f'{str(path)!r} entry {i}: "heading" must be a finite number of radians, got {item["heading"]!r}'
                 )
