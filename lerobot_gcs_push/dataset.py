@@ -32,6 +32,7 @@ import numpy as np
 from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.pusht_dataset import PUSHT_FEATURE_KEYS, PushTFrames, pusht_features
 from lerobot_gcs_push.registration import ENV_ID, PUSHT_ENV_ID, SCENES, sample_starts
+from lerobot_gcs_push.replay import REPLAY_META, ReplayActions, dataset_replay, write_replay
 from lerobot_gcs_push.scene import (
     Disturbances,
     Scene,
@@ -64,9 +65,10 @@ class GenerateConfig:
     seed: int = 0
     # Worker processes (or Ray actors); the dataset does not depend on it.
     workers: int = 2
-    # open-loop (plan once, the paper's) or closed-loop (replans after disturbances). Default: open-loop
-    # for the box that cannot turn; closed-loop for a rotating slider, which strays from any plan pushed
-    # open-loop (contact/expert.py).
+    # open-loop (plan once, the paper's), closed-loop (replans after disturbances) or replay (runs the
+    # "actions" of each --initial_conditions entry: a dataset's meta/gcs_push_replay.json rebuilds it, see
+    # replay.py). Default: replay for a list whose entries all carry actions; else open-loop for the box
+    # that cannot turn, closed-loop for a rotating slider, which strays from any plan pushed open-loop.
     expert: str | None = None
     # relaxation (convex relaxation + rounding) or micp (exact, SCIP).
     method: str = "relaxation"
@@ -122,10 +124,19 @@ class GenerateConfig:
         if "/" not in self.repo_id:
             raise ValueError(f"repo_id must look like 'owner/name', got {self.repo_id!r}")
         rotates = SCENES[self.env_id].rotates
+        replayable = bool(ics) and all("actions" in ic for ic in ics)
         if self.expert is None:
-            self.expert = "closed-loop" if rotates else "open-loop"
-        if self.expert not in EXPERTS:
-            raise ValueError(f"unknown expert {self.expert!r}: choose one of {EXPERTS}")
+            self.expert = "replay" if replayable else "closed-loop" if rotates else "open-loop"
+        if self.expert not in (*EXPERTS, "replay"):
+            raise ValueError(f"unknown expert {self.expert!r}: choose one of {(*EXPERTS, 'replay')}")
+        if self.expert == "replay":
+            if not ics:
+                raise ValueError("--expert=replay runs the actions of an --initial_conditions list: pass one")
+            missing = next((i for i, ic in enumerate(ics) if "actions" not in ic), None)
+            if missing is not None:
+                raise ValueError(f'--expert=replay: initial condition {missing} has no "actions"')
+            if self.disturbances:
+                raise ValueError("--expert=replay repeats undisturbed episodes: drop --disturbances")
         check_sampler(self.sampler)
         from lerobot_gcs_push.planner import check_method
 
@@ -226,7 +237,9 @@ def _init_worker(cfg_dict: dict, work_path: str, shards_path: str) -> None:
         env=env,
         work=WorkDir(Path(work_path)),
         shards=Path(shards_path),
-        expert=make_expert(env.scene, cfg.fps, ExpertConfig(mode=cfg.expert, method=cfg.method)),
+        expert=ReplayActions()
+        if cfg.expert == "replay"
+        else make_expert(env.scene, cfg.fps, ExpertConfig(mode=cfg.expert, method=cfg.method)),
     )
 
 
@@ -286,6 +299,8 @@ def _run_episode(job: tuple[int, dict]) -> dict:
     env, expert, cfg = _WORKER["env"], _WORKER["expert"], _WORKER["cfg"]
     pusht = cfg.env_id == PUSHT_ENV_ID  # lerobot/pusht's frames, recorded from the env's own steps
     frames = PushTFrames(env) if pusht else EpisodeFrames(env.scene)
+    if cfg.expert == "replay":
+        expert.load(ic["actions"])
     t0 = time.perf_counter()
     seed = episode_seed(cfg.seed, index)
     result = rollout(
@@ -429,7 +444,7 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
     t0 = time.perf_counter()
     if cfg.initial_conditions:
         # A file's other keys (a branch state's source) stay out of the jobs.
-        keys = ("box", "finger", "heading", "pusht_state")
+        keys = ("box", "finger", "heading", "pusht_state", "actions")
         ics = [{k: ic[k] for k in keys if k in ic} for ic in load_initial_conditions(cfg.initial_conditions, scene)]
     else:
         max_attempts = int(np.ceil(cfg.episodes * cfg.max_attempts_factor)) + 10
@@ -604,6 +619,7 @@ def _merge(cfg: GenerateConfig, root: Path, shard_roots: list[Path], metas: list
         "".join(json.dumps({"episode_index": i, **meta}) + "\n" for i, meta in enumerate(metas))
     )
     (staging / SETTINGS_META).write_text(json.dumps(settings, indent=1))
+    write_replay(staging / REPLAY_META, *dataset_replay(staging, metas))
     root.parent.mkdir(parents=True, exist_ok=True)
     os.replace(staging, root)
 

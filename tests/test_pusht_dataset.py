@@ -186,6 +186,36 @@ def test_generated_episodes_replay_in_a_fresh_gym_pusht(pusht_dataset):
         start_index += n
 
 
+@pytest.mark.slow
+def test_its_replay_list_rebuilds_it_value_for_value(pusht_dataset):
+    """`meta/gcs_push_replay.json` (starts and actions) replayed with no planning: every stored value and
+    every video frame as the expert's run wrote them (gym-pusht runs the stored float32 actions)."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from lerobot_gcs_push.dataset import GenerateConfig, generate
+    from lerobot_gcs_push.replay import REPLAY_META
+
+    home, root, report = pusht_dataset
+    copy = home / "local" / "gcs_pusht_replayed"
+    cfg = GenerateConfig(
+        env_id=PUSHT_ENV_ID,
+        repo_id="local/gcs_pusht_replayed",
+        root=str(copy),
+        initial_conditions=str(root / REPLAY_META),
+        workers=1,
+        progress=False,
+    )
+    assert cfg.expert == "replay"
+    assert generate(cfg).frames == report.frames
+    for a, b in zip(_episodes(root), _episodes(copy), strict=True):
+        for key in a:
+            assert np.array_equal(a[key], b[key]), key
+    source = LeRobotDataset(REPO_ID, root=root, video_backend="pyav")
+    rebuilt = LeRobotDataset("local/gcs_pusht_replayed", root=copy, video_backend="pyav")
+    for t in (0, report.frames // 2, report.frames - 1):  # decoded frames: the same encoder on the same images
+        assert np.array_equal(source[t]["observation.image"].numpy(), rebuilt[t]["observation.image"].numpy()), t
+
+
 def _lerobot(args: list[str], home: Path, cwd: Path) -> None:
     """One of LeRobot's console scripts, offline, on the datasets in `home` (as tests/test_lerobot_plugin.py)."""
     env = {
