@@ -73,6 +73,9 @@ class CollectConfig:
             raise ValueError(f"keep_fraction must be in [0, 1], got {self.keep_fraction}")
         if self.max_per_run < 1:
             raise ValueError(f"max_per_run must be >= 1, got {self.max_per_run}")
+        from lerobot_gcs_push.scene import check_seed
+
+        check_seed(self.seed)
 
 
 def branch_states(records: list[dict], cfg: CollectConfig, scene: Scene | None = None) -> list[dict]:

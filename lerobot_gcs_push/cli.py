@@ -19,6 +19,7 @@ from lerobot_gcs_push.dataset import GenerateConfig
 from lerobot_gcs_push.evaluation import EvaluateConfig
 from lerobot_gcs_push.improve import ImproveConfig
 from lerobot_gcs_push.scene import Scene, is_finite_number, load_initial_conditions
+from lerobot_gcs_push.shipped import shipped_path
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")  # nothing here may reach the network unless asked to
 
@@ -295,7 +296,8 @@ def run_demo(cfg: DemoConfig) -> None:
         print(f"learned policy: {policy_dir}/tables.md; watch {policy_dir}/side_by_side_ic000.mp4")
     print(
         "train a policy on the dataset (CPU preset):\n"
-        f"  .venv/bin/lerobot-train --config_path=configs/policy/diffusion_cpu.json --dataset.repo_id={cfg.repo_id}"
+        f"  lerobot-train --config_path={shipped_path('configs/policy/diffusion_cpu.json')} "
+        f"--dataset.repo_id={cfg.repo_id}"
     )
 
 

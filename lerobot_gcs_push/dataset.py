@@ -37,6 +37,7 @@ from lerobot_gcs_push.scene import (
     Disturbances,
     Scene,
     check_sampler,
+    check_seed,
     episode_seed,
     load_initial_conditions,
 )
@@ -145,8 +146,11 @@ class GenerateConfig:
             raise ValueError(f"{self.env_id} plans with the relaxation only: drop --method={self.method}")
         if self.max_sim_time_s is None:
             self.max_sim_time_s = scene.timeout_s
-        if self.image_size < 1 or not self.max_sim_time_s > 0:
-            raise ValueError("image_size must be >= 1 and max_sim_time_s positive")
+        if self.image_size < 1:
+            raise ValueError(f"image_size must be >= 1, got {self.image_size}")
+        if not 0 < self.max_sim_time_s < float("inf"):  # inf would roll a failing start out forever
+            raise ValueError(f"max_sim_time_s must be positive and finite, got {self.max_sim_time_s}")
+        check_seed(self.seed)
         per_s = round(1 / Disturbances.tick_s)
         if self.fps <= 0 or per_s % self.fps:  # an env step is a whole number of disturbance ticks
             raise ValueError(f"fps must divide {per_s}, got {self.fps}")

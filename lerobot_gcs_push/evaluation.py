@@ -28,6 +28,7 @@ from lerobot_gcs_push.registration import ENV_ID, SCENES, sample_starts
 from lerobot_gcs_push.scene import (
     TASK,
     check_sampler,
+    check_seed,
     episode_seed,
     load_initial_conditions,
 )
@@ -70,9 +71,12 @@ PAPER = {
 
 
 def check_policy(policy: str) -> str:
+    """`policy` as given (it labels the records), once it names an expert or a pretrained_model folder,
+    from the working folder or shipped (`shipped.shipped_path`)."""
     from lerobot_gcs_push.checkpoints import is_pretrained_dir
+    from lerobot_gcs_push.shipped import shipped_path
 
-    if policy not in GCS_POLICIES and not is_pretrained_dir(policy):
+    if policy not in GCS_POLICIES and not is_pretrained_dir(shipped_path(policy)):
         raise ValueError(
             f"unknown policy {policy!r}: use {' or '.join(GCS_POLICIES)}, or a LeRobot pretrained_model "
             f"directory (config.json and model.safetensors)"
@@ -151,8 +155,8 @@ class EvaluateConfig:
             raise ValueError("runs, num_initial_conditions and workers must be >= 1")
         if self.timeout_s is None:
             self.timeout_s = SCENES[self.env_id].timeout_s
-        if not self.timeout_s > 0:
-            raise ValueError(f"timeout_s must be positive, got {self.timeout_s}")
+        if not 0 < self.timeout_s < float("inf"):
+            raise ValueError(f"timeout_s must be positive and finite, got {self.timeout_s}")
         for p in self.policies:
             check_policy(p)
         if self.regret is None:
@@ -162,6 +166,7 @@ class EvaluateConfig:
         check_sampler(self.sampler)
         if self.seed is None:
             self.seed = NAMED_SET_SEEDS[self.sampler]
+        check_seed(self.seed)
         check_device(self.device)
         if self.dataset is not None:  # read for Fig. 4 only at the end: a typo must not cost the evaluation
             from lerobot_gcs_push.dataset import lerobot_home
@@ -177,8 +182,10 @@ class EvaluateConfig:
 
 def weights_fingerprint(policy: str) -> str:
     """The first 16 hex digits of the sha256 of a learned policy's model.safetensors."""
+    from lerobot_gcs_push.shipped import shipped_path
+
     h = hashlib.sha256()
-    with open(Path(policy) / "model.safetensors", "rb") as f:
+    with open(Path(shipped_path(policy)) / "model.safetensors", "rb") as f:
         for block in iter(lambda: f.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()[:16]
@@ -302,7 +309,9 @@ class _Runner:
 
     def learned(self, path: str):
         if path not in self._learned:
-            self._learned[path] = LearnedPolicy(path, self.cfg.device, self.envs[False].task)
+            from lerobot_gcs_push.shipped import shipped_path
+
+            self._learned[path] = LearnedPolicy(shipped_path(path), self.cfg.device, self.envs[False].task)
         return self._learned[path]
 
     def run(self, job: dict) -> dict:

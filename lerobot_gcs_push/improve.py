@@ -35,6 +35,7 @@ from pathlib import Path
 from lerobot_gcs_push.checkpoints import export_policy, is_pretrained_dir
 from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.improve_curve import CURVE_FILE, plot_curve
+from lerobot_gcs_push.shipped import shipped_path
 
 STATE_FILE = "state.json"
 _SAVE_LOCK = threading.Lock()
@@ -150,10 +151,13 @@ class ImproveConfig:
         from lerobot_gcs_push.evaluation import check_device
         from lerobot_gcs_push.expert import check_cost_to_go
         from lerobot_gcs_push.rollout import check_env_id
-        from lerobot_gcs_push.scene import check_sampler
+        from lerobot_gcs_push.scene import check_sampler, check_seed
 
         check_cost_to_go(check_env_id(self.env_id), "rounds label the policy's states with it")
         check_sampler(self.hard_sampler)
+        check_seed(self.seed)
+        check_seed(self.base.seed, "base.seed")
+        self.train_config = shipped_path(self.train_config)  # the shipped preset, wherever this runs
         # One spelling of each path: the policy's is also its label in every evaluation record.
         for name in ("policy", "state_dir", "work_dir", "train_config"):
             setattr(self, name, _canonical(getattr(self, name)))

@@ -458,6 +458,13 @@ def _hard_point(scene: Scene, kind: str, rng: np.random.Generator) -> tuple[np.n
     return np.clip(box, -lim, lim), np.clip(finger, -scene.finger_limit, scene.finger_limit)
 
 
+def check_seed(seed, name: str = "seed") -> int:
+    """`seed` if it is a whole number >= 0 (numpy's seeding refuses others with a message that names no field)."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"{name} must be a whole number >= 0, got {seed!r}")
+    return seed
+
+
 def episode_seed(seed: int, index: int) -> int:
     """The env seed of episode `index` of a run seeded `seed`: independent of worker count and order."""
     return int(np.random.SeedSequence([seed, index]).generate_state(1)[0])
