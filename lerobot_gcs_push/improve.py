@@ -246,19 +246,22 @@ class State:
     stages: dict[str, dict] = field(default_factory=dict)  # name -> {"done", "wall_s", "finished_at", ...}
     rounds: list[dict] = field(default_factory=list)  # per round: rollout scores, decision, hours at its end
     settings: dict = field(default_factory=dict)
+    # The stop rule of the latest invocation (it may change on resume, unlike settings): the curve's targets.
+    stop: dict = field(default_factory=dict)
 
     @classmethod
     def load(cls, path: Path) -> State:
         if not path.is_file():
             return cls(path)
         data = json.loads(path.read_text())
-        return cls(path, data["stages"], data["rounds"], data.get("settings", {}))
+        return cls(path, data["stages"], data["rounds"], data.get("settings", {}), data.get("stop", {}))
+
+    def as_dict(self) -> dict:
+        return {"settings": self.settings, "stop": self.stop, "stages": self.stages, "rounds": self.rounds}
 
     def save(self) -> None:
         with _SAVE_LOCK, atomic_path(self.path) as tmp:  # the heartbeat thread saves too, into the same tmp
-            tmp.write_text(
-                json.dumps({"settings": self.settings, "stages": self.stages, "rounds": self.rounds}, indent=1)
-            )
+            tmp.write_text(json.dumps(self.as_dict(), indent=1))
 
     @property
     def hours(self) -> float:
@@ -291,6 +294,7 @@ class Improver:
                 "or another --state_dir"
             )
         self.state.settings = _settings(cfg)
+        self.state.stop = asdict(cfg.stop)
         self.home = lerobot_home()
 
     # -- the bookkeeping every stage shares ---------------------------------------------------------
@@ -616,7 +620,7 @@ class Improver:
                 why = f"budget of {cfg.stop.max_hours:g} h spent"
                 break
             self.stage(f"r{k}.rollouts", functools.partial(self.run_rollouts, k))
-            plot_curve({"stages": self.state.stages}, self.state_dir / CURVE_FILE, cfg.stop)
+            plot_curve(self.state.as_dict(), self.state_dir / CURVE_FILE)
             if self.targets_met(k):
                 self.record_round(k, shipped=False, decision=None, targets_met=True)
                 why = f"targets met on round {k}'s rollouts"

@@ -27,10 +27,12 @@ def curve_points(state: dict) -> list[dict]:
     return points
 
 
-def plot_curve(state: dict, path: Path, stop=None) -> Path | None:
-    """Success with and without disturbances, time over GCS's and regret against hours; the targets of
-    `stop` (a StopConfig) drawn as dashed lines. None when no round is scored yet."""
+def plot_curve(state: dict, path: Path) -> Path | None:
+    """Success with and without disturbances, time over GCS's and regret against hours; the run's stop
+    targets (`state["stop"]`, as its last invocation set them) drawn as dotted lines. None when no round is
+    scored yet."""
     points = curve_points(state)
+    stop = state.get("stop") or {}
     if not points:
         return None
     import matplotlib
@@ -50,10 +52,11 @@ def plot_curve(state: dict, path: Path, stop=None) -> Path | None:
                          label=f"{name}, {key} disturbances")  # fmt: skip
         axes[1].plot(hours, [r.get("time_ratio") if r else None for r in rows], "-o", color=colors[name], label=name)
         axes[2].plot(hours, [r.get("regret_mean") if r else None for r in rows], "-o", color=colors[name], label=name)
-    if stop is not None:
-        for y, name in ((stop.hard_success, "hard"), (stop.uniform_success, "uniform")):
-            axes[0].axhline(y, color=colors[name], lw=0.8, ls=":")
-        axes[1].axhline(stop.time_ratio, color="k", lw=0.8, ls=":")
+    for key, name in (("hard_success", "hard"), ("uniform_success", "uniform")):
+        if key in stop:
+            axes[0].axhline(stop[key], color=colors[name], lw=0.8, ls=":")
+    if "time_ratio" in stop:
+        axes[1].axhline(stop["time_ratio"], color="k", lw=0.8, ls=":")
     for x, p in zip(hours, points):
         axes[0].text(x, 1.05, f"r{p['round']}", ha="center", fontsize=8)
     axes[0].set(ylim=(0, 1.1), ylabel="success on the round's rollouts")
@@ -80,9 +83,7 @@ def main(argv=None) -> None:
     if not state_file.is_file():
         raise SystemExit(f"{state_file} does not exist: give a gcs-push improve --state_dir")
     state = json.loads(state_file.read_text())
-    from lerobot_gcs_push.improve import StopConfig
-
-    out = plot_curve(state, Path(args[0]) / CURVE_FILE, StopConfig())
+    out = plot_curve(state, Path(args[0]) / CURVE_FILE)
     for p in curve_points(state):
         cells = "; ".join(
             f"{k} {s.get('without', float('nan')):.3f} / {s.get('with', float('nan')):.3f}, "

@@ -98,7 +98,7 @@ def test_the_tail_of_the_schedule_is_the_presets():
 
 
 def test_a_state_file_resumes_from_a_clone_elsewhere(tmp_path, monkeypatch):
-    from lerobot_gcs_push.improve import ImproveConfig, Improver
+    from lerobot_gcs_push.improve import ImproveConfig, Improver, StopConfig
 
     # Made in one checkout with absolute paths inside it; the copy moves to another checkout.
     cfg = {"train_config": str(ROOT / "configs" / "policy" / "diffusion_cpu.json"), "work_dir": str(tmp_path / "w")}
@@ -113,6 +113,10 @@ def test_a_state_file_resumes_from_a_clone_elsewhere(tmp_path, monkeypatch):
     shutil.copy(first / "state" / "state.json", second / "state" / "state.json")
     monkeypatch.chdir(second)
     Improver(ImproveConfig(policy="pol", state_dir="state", **cfg))  # the same settings
+    # The stop targets may change on resume (not a setting); the state keeps the latest, for the curve.
+    looser = Improver(ImproveConfig(policy="pol", state_dir="state", stop=StopConfig(time_ratio=1.3), **cfg))
+    looser.state.save()
+    assert json.loads((second / "state" / "state.json").read_text())["stop"]["time_ratio"] == 1.3
     with pytest.raises(ValueError, match="policy"):
         Improver(ImproveConfig(policy="other", state_dir="state", **cfg))
 

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 
 import matplotlib.image
+import numpy as np
 import pytest
 
 from lerobot_gcs_push.improve import StopConfig
@@ -42,8 +44,10 @@ def test_points_sit_at_the_hours_spent_before_their_rollouts():
 
 def test_the_curve_is_drawn_from_a_state_folder(tmp_path, capsys):
     assert plot_curve({"stages": {}}, tmp_path / "none.png") is None
-    out = plot_curve(_state(), tmp_path / "curve.png", StopConfig())
+    out = plot_curve(_state() | {"stop": asdict(StopConfig())}, tmp_path / "curve.png")
     assert matplotlib.image.imread(out).shape[:2] == (342, 1170)  # figsize x dpi
+    bare = plot_curve(_state(), tmp_path / "bare.png")  # a state file from before the targets were kept
+    assert not np.array_equal(matplotlib.image.imread(out), matplotlib.image.imread(bare))  # the targets drawn
     (tmp_path / "state.json").write_text(json.dumps(_state()))
     main([str(tmp_path)])
     printed = capsys.readouterr().out
