@@ -18,6 +18,7 @@ from lerobot_gcs_push.active import CollectConfig
 from lerobot_gcs_push.dataset import GenerateConfig
 from lerobot_gcs_push.evaluation import EvaluateConfig
 from lerobot_gcs_push.improve import ImproveConfig
+from lerobot_gcs_push.registration import ENV_ID
 from lerobot_gcs_push.scene import Scene, is_finite_number, load_initial_conditions
 from lerobot_gcs_push.shipped import shipped_path
 
@@ -40,7 +41,7 @@ class PlanConfig:
     jsonl: bool = False
     # The task: GcsPushBox-v0 (GCS over the box's modes), or a rotating slider (GcsPushBoxSE2-v0,
     # GcsPushT-v0), planned through contact (lerobot_gcs_push/contact/, work in progress: issue 32).
-    env_id: str = "GcsPushBox-v0"
+    env_id: str = ENV_ID
     # The slider's heading in radians (rotating sliders; a file's entries carry their own "heading").
     heading: float = 0.0
 

@@ -35,6 +35,7 @@ from pathlib import Path
 from lerobot_gcs_push.checkpoints import export_policy, is_pretrained_dir
 from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.improve_curve import CURVE_FILE, plot_curve
+from lerobot_gcs_push.registration import ENV_ID
 from lerobot_gcs_push.shipped import shipped_path
 
 STATE_FILE = "state.json"
@@ -122,7 +123,7 @@ class ImproveConfig:
     # dropped round 1's and forgot what it taught). Needed to go on from the shipped policy.
     prior_states: list[str] = field(default_factory=list)
     # The task; a field so that another registered env (a rotating slider) runs the same loop.
-    env_id: str = "GcsPushBox-v0"
+    env_id: str = ENV_ID
     # The sampler of the hard rollouts and validation sets. hard_v2 adds to the hard families the one the
     # shipped policy's unseen sets found weak (box and finger in opposite corners, 1 success in 3) and
     # fingers far from the box; runs begun before it existed used `hard`.

@@ -12,13 +12,13 @@ import math
 
 import gymnasium as gym
 
-from lerobot_gcs_push.pusht_env import GymPushTTarget, pusht_scene, reset_states
+from lerobot_gcs_push.pusht_env import GYM_PUSHT_ID, GymPushTTarget, pusht_scene, reset_states
 from lerobot_gcs_push.scene import HARD_SAMPLERS, InitialCondition, Scene, sample_initial_conditions
 
 ENV_ID = "GcsPushBox-v0"  # the paper's box, which cannot turn
 SE2_ENV_ID = "GcsPushBoxSE2-v0"  # the same box on a yaw joint: position and heading to reach
 TEE_ENV_ID = "GcsPushT-v0"  # gym-pusht's T in Drake, turned to gym-pusht's goal heading (y up: -pi/4)
-PUSHT_ENV_ID = "gym_pusht/PushT-v0"  # gym-pusht's own env (registered by gym_pusht), driven as a target
+PUSHT_ENV_ID = GYM_PUSHT_ID  # gym-pusht's own env (registered by gym_pusht), driven as a target
 
 
 SCENES = {
