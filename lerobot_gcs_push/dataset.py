@@ -41,6 +41,7 @@ from lerobot_gcs_push.scene import (
     episode_seed,
     load_initial_conditions,
 )
+from lerobot_gcs_push.settings import changed, describe
 
 EPISODES_META = "meta/gcs_push_episodes.jsonl"
 SETTINGS_META = "meta/gcs_push_settings.json"  # the settings a finished dataset was made with (see _finished)
@@ -362,8 +363,9 @@ class WorkDir:
                     "or --overwrite=true to start again"
                 )
             old = json.loads(self.settings_file().read_text()) if self.settings_file().exists() else None
-            if old is not None and _IMPLICIT_SETTINGS | old != settings:
-                raise ValueError(f"--resume with different settings than the interrupted run: {_diff(old, settings)}")
+            diff = changed(old, settings, _IMPLICIT_SETTINGS) if old is not None else {}
+            if diff:
+                raise ValueError(f"--resume with different settings than the interrupted run: {describe(diff)}")
         self.path.mkdir(parents=True, exist_ok=True)
         with atomic_path(self.settings_file()) as tmp:
             tmp.write_text(json.dumps(settings, indent=1))
@@ -592,11 +594,9 @@ def _finished(cfg: GenerateConfig, root: Path, settings: dict) -> GenerateReport
     file = root / SETTINGS_META
     if not file.exists():
         raise FileExistsError(f"a dataset already exists at {root}, made before its settings were recorded: {hint}")
-    held = _IMPLICIT_SETTINGS | json.loads(file.read_text())
-    if held != wanted:
-        raise FileExistsError(
-            f"the finished dataset at {root} was made with other settings {_diff(held, wanted)}: {hint}"
-        )
+    diff = changed(json.loads(file.read_text()), wanted, _IMPLICIT_SETTINGS)
+    if diff:
+        raise FileExistsError(f"the finished dataset at {root} was made with other settings ({describe(diff)}): {hint}")
     metas = read_episode_metadata(root)
     return GenerateReport(
         str(root),
@@ -750,11 +750,6 @@ class _Writer:
 
     def finish(self) -> None:
         self.ds.finalize()
-
-
-def _diff(held: dict, wanted: dict) -> dict:
-    """{setting: (held, wanted)} for the settings that differ, for error messages."""
-    return {k: (held.get(k), v) for k, v in wanted.items() if held.get(k) != v}
 
 
 def read_episode_metadata(root) -> list[dict]:

@@ -36,6 +36,7 @@ from lerobot_gcs_push.checkpoints import export_policy, is_pretrained_dir
 from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.improve_curve import CURVE_FILE, plot_curve
 from lerobot_gcs_push.registration import ENV_ID
+from lerobot_gcs_push.settings import changed, describe
 from lerobot_gcs_push.shipped import shipped_path
 
 STATE_FILE = "state.json"
@@ -221,13 +222,6 @@ def _canonical(path: str) -> str:
     return p if rel.startswith("..") else rel
 
 
-def _flat(d: dict, prefix: str = "") -> dict:
-    out = {}
-    for k, v in d.items():
-        out |= _flat(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v}
-    return out
-
-
 # What a state file made before a field existed ran with: resumed, it must keep it (or be refused).
 _BEFORE_FIELDS = {"hard_sampler": "hard"}
 
@@ -282,16 +276,14 @@ class Improver:
         # The settings that decide what a stage computes may not change under a resumed run. Compared leaf
         # by leaf. A field that a later version added is read, for an older state file, as the value that
         # file's run used (`_BEFORE_FIELDS`), so a resume that would change it is refused.
-        wanted, stored = _flat(_settings(cfg)), _flat(self.state.settings)
-        if stored:
-            stored = _BEFORE_FIELDS | stored
+        stored = dict(self.state.settings)
         for k in ("policy", "train_config"):
             if k in stored:
                 stored[k] = _canonical(stored[k])
-        diff = sorted(k for k in stored if k in wanted and stored[k] != wanted[k])
+        diff = changed(stored, _settings(cfg), _BEFORE_FIELDS, only_held=True) if stored else {}
         if diff:
             raise ValueError(
-                f"{self.state.path} was made with other settings ({', '.join(diff)}): use the same ones, "
+                f"{self.state.path} was made with other settings ({describe(diff)}): use the same ones, "
                 "or another --state_dir"
             )
         self.state.settings = _settings(cfg)

@@ -150,7 +150,7 @@ def test_worker_count_and_interruption_do_not_change_the_dataset(tmp_path, refer
     assert f"already complete: {N} demonstrations" in res.stdout
     assert (root / "meta/info.json").stat().st_mtime_ns == stamp
     res = subprocess.run(cmd + ["--resume=true", "--seed=1"], capture_output=True, text=True)
-    assert res.returncode != 0 and "other settings" in res.stderr and "'seed'" in res.stderr
+    assert res.returncode != 0 and "other settings" in res.stderr and "seed: 0 -> 1" in res.stderr
 
 
 def test_a_merge_holds_each_datasets_episodes_in_turn(reference):
