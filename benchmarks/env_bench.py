@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 
-from lerobot_gcs_push.env import GcsPushBoxEnv
+from lerobot_gcs_push.env import GcsPushEnv
 
 # Scene.validate_state rejects any negative gap, and box - contact_distance can round to -4e-16.
 _CLEARANCE = 1e-9
@@ -85,7 +85,7 @@ def tracking(env, speeds=(0.2, 0.5, 1.0), distance: float = 1.0) -> dict:
 
 
 def run(repeats: int = 3, steps: int = 300) -> dict:
-    env = GcsPushBoxEnv()  # pixels_agent_pos, 96x96, fps 10
+    env = GcsPushEnv()  # pixels_agent_pos, 96x96, fps 10
     env.reset(seed=0)
     env.step(env.sim.finger_position())  # warm up the renderer
     rates, cpu_rates = {}, {}

@@ -1,5 +1,5 @@
 """`GcsPushBox-v0`, `GcsPushBoxSE2-v0` and `GcsPushT-v0`: one Gymnasium env class over the Drake pushing
-scene; the ids differ only in their `Scene` (registration.py). See `GcsPushBoxEnv` for the spaces."""
+scene; the ids differ only in their `Scene` (registration.py). See `GcsPushEnv` for the spaces."""
 
 from __future__ import annotations
 
@@ -119,7 +119,7 @@ class DisturbanceSchedule:
         return tuple(float(v) for v in a + t * (b - a))
 
 
-class GcsPushBoxEnv(gym.Env):
+class GcsPushEnv(gym.Env):
     """A finger pushes a slider on a plane, in Drake, to a goal: the paper's box that cannot turn
     (`GcsPushBox-v0`), a box that turns (`GcsPushBoxSE2-v0`) or gym-pusht's T (`GcsPushT-v0`).
 

@@ -49,7 +49,7 @@ def register_envs() -> None:
     for env_id, scene in SCENES.items():
         if env_id not in gym.envs.registry and env_id != PUSHT_ENV_ID:
             kwargs = {} if env_id == ENV_ID else {"scene": scene}
-            gym.register(id=env_id, entry_point="lerobot_gcs_push.env:GcsPushBoxEnv", kwargs=kwargs)
+            gym.register(id=env_id, entry_point="lerobot_gcs_push.env:GcsPushEnv", kwargs=kwargs)
 
 
 def sample_starts(scene: Scene, n: int, seed: int = 0, sampler: str = "sobol") -> list[InitialCondition]:

@@ -40,7 +40,7 @@ def rollout(
     heading: float | None = None,
     pusht_state=None,
 ) -> dict:
-    """Run one episode of `policy` in `env` (a GcsPushBoxEnv, possibly wrapped) and summarise it.
+    """Run one episode of `policy` in `env` (a GcsPushEnv, possibly wrapped) and summarise it.
 
     Without `box`/`finger` the env samples the initial condition from `seed`; `pusht_state` (gym-pusht's
     state vector of the same start) takes their place in gym-pusht; `heading` is a rotating

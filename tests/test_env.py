@@ -10,7 +10,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import lerobot_gcs_push  # noqa: F401  (registers the env ids)
-from lerobot_gcs_push.env import ENV_ID, DisturbanceSchedule, GcsPushBoxEnv, register_envs
+from lerobot_gcs_push.env import ENV_ID, DisturbanceSchedule, GcsPushEnv, register_envs
 from lerobot_gcs_push.scene import Disturbances, Scene
 from lerobot_gcs_push.sim import TopDownCamera
 
@@ -19,7 +19,7 @@ SCENE = Scene()
 
 @pytest.fixture(scope="module")
 def env():
-    e = GcsPushBoxEnv()
+    e = GcsPushEnv()
     yield e
     e.close()
 
@@ -59,7 +59,7 @@ def test_the_registered_id_makes_the_env_without_time_limit():
     # one registration per id: the box, and the rotating box and T beside it
     assert [i for i in gym.registry if i.startswith("GcsPush")] == [ENV_ID, "GcsPushBoxSE2-v0", "GcsPushT-v0"]
     e = gym.make(ENV_ID, max_sim_time_s=0.3, render_size=96)
-    assert isinstance(e.unwrapped, GcsPushBoxEnv)
+    assert isinstance(e.unwrapped, GcsPushEnv)
     assert e.get_wrapper_attr("_max_episode_steps") == 3
     assert e.spec.max_episode_steps is None  # our own truncation is the only one
     assert e.unwrapped.metadata["render_fps"] == 10
@@ -68,7 +68,7 @@ def test_the_registered_id_makes_the_env_without_time_limit():
 
 
 def test_actions_outside_the_action_space_are_clipped_to_it():
-    e = GcsPushBoxEnv(max_sim_time_s=30, render_size=96)
+    e = GcsPushEnv(max_sim_time_s=30, render_size=96)
     e.reset(options={"box": [-3.0, -3.0], "finger": [3.0, 3.0]})
     lim = e.scene.finger_limit
     assert np.all(e.action_space.high == lim)
@@ -79,7 +79,7 @@ def test_actions_outside_the_action_space_are_clipped_to_it():
 
 
 def test_truncation_success_and_info():
-    e = GcsPushBoxEnv(fps=20, max_sim_time_s=0.2, goal=(1.0, 1.0), render_size=96)
+    e = GcsPushEnv(fps=20, max_sim_time_s=0.2, goal=(1.0, 1.0), render_size=96)
     assert e._max_episode_steps == 4 and e.metadata["render_fps"] == 20
     _, info = e.reset(options={"box": [1.05, 1.0], "finger": [-3.0, -3.0]})
     assert info["is_success"] and info["box_goal_distance"] == pytest.approx(0.05)
@@ -93,7 +93,7 @@ def test_truncation_success_and_info():
 
 
 def test_same_seed_same_observations():
-    e = GcsPushBoxEnv(disturbances=True, render_size=96)
+    e = GcsPushEnv(disturbances=True, render_size=96)
 
     def rollout(seed):
         obs, info = e.reset(seed=seed)
@@ -112,7 +112,7 @@ def test_same_seed_same_observations():
     assert a[2] == b[2]
     assert not np.array_equal(a[0][0], c[0][0])
     # A fresh env with the same seed reproduces it too: nothing leaks between envs or episodes.
-    fresh = GcsPushBoxEnv(disturbances=True, render_size=96)
+    fresh = GcsPushEnv(disturbances=True, render_size=96)
     np.testing.assert_array_equal(fresh.reset(seed=3)[0]["pixels"], a[0][0])
 
 
@@ -187,7 +187,7 @@ def test_out_of_range_actions_are_clipped(env):
 
 def test_disturbance_pushes_the_box_by_its_impulse():
     protocol = Disturbances(probability_per_tick=1.0, max_count=1)  # one push at the first tick
-    e = GcsPushBoxEnv(scene=dataclasses.replace(SCENE, disturbances=protocol), disturbances=True, render_size=96)
+    e = GcsPushEnv(scene=dataclasses.replace(SCENE, disturbances=protocol), disturbances=True, render_size=96)
     box = np.array([1.0, 1.0])
     e.reset(seed=5, options={"box": box, "finger": [-4.0, -4.0]})
     info = hold(e, [-4.0, -4.0], seconds=3.0)
@@ -379,6 +379,6 @@ def test_drake_collision_query_agrees_with_exact_geometry(env):
 
 def test_bad_constructor_arguments_raise():
     with pytest.raises(ValueError, match="obs_type"):
-        GcsPushBoxEnv(obs_type="pixels")
+        GcsPushEnv(obs_type="pixels")
     with pytest.raises(ValueError, match="multiple"):
-        GcsPushBoxEnv(fps=30)  # 1/30 s is not a whole number of 0.01 s ticks
+        GcsPushEnv(fps=30)  # 1/30 s is not a whole number of 0.01 s ticks

@@ -14,7 +14,7 @@ from gymnasium.utils.env_checker import check_env
 from scipy import stats
 
 import lerobot_gcs_push  # noqa: F401  (registers the env ids)
-from lerobot_gcs_push.env import SE2_ENV_ID, TEE_ENV_ID, GcsPushBoxEnv
+from lerobot_gcs_push.env import SE2_ENV_ID, TEE_ENV_ID, GcsPushEnv
 from lerobot_gcs_push.registration import SCENES
 from lerobot_gcs_push.scene import Disturbances, Scene, load_initial_conditions, sample_initial_conditions
 from lerobot_gcs_push.sim import PushSim
@@ -197,7 +197,7 @@ def test_pushed_tee_follows_the_quasi_static_model_with_friction(tee_sim, x, vel
 def test_a_disturbance_pushes_and_twists_by_its_impulse():
     protocol = Disturbances(probability_per_tick=1.0, max_count=1)  # one push at the first tick
     scene = dataclasses.replace(TEE_SCENE, disturbances=protocol)
-    e = GcsPushBoxEnv(scene=scene, disturbances=True, render_size=96)
+    e = GcsPushEnv(scene=scene, disturbances=True, render_size=96)
     heading = 0.7
     e.reset(seed=5, options={"box": [1.0, 1.0], "finger": [-5.0, -5.0], "heading": heading})
     for _ in range(30):
@@ -349,7 +349,7 @@ def test_bad_rotating_initial_conditions_raise(tee_env):
     tee_env.reset(options={"box": [0.0, 0.0], "finger": [0.0, 1.0], "heading": 0.0})
     with pytest.raises(ValueError, match="heading"):
         tee_env.reset(options={"box": [0.0, 0.0], "finger": [3.0, 3.0], "heading": float("nan")})
-    box_env = GcsPushBoxEnv(render_size=96)
+    box_env = GcsPushEnv(render_size=96)
     with pytest.raises(ValueError, match="cannot rotate"):
         box_env.reset(options={"box": [0.0, 0.0], "finger": [3.0, 3.0], "heading": 0.5})
     box_env.close()

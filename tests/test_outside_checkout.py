@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import sysconfig
@@ -65,9 +66,15 @@ def test_the_built_wheel_installs_a_working_gcs_push(tmp_path):
     reached through this one's site-packages, read as a plain path, so this checkout's editable install is
     not): `gcs-push plan` and `gcs-push evaluate` with the shipped policy, from an empty folder."""
     py = sys.executable
-    dist = tmp_path / "dist"
+    dist, source = tmp_path / "dist", tmp_path / "source"
+    # Built from a copy of the tracked tree: the build leaves nothing in the checkout, and nothing
+    # untracked there (outputs, an old build/) reaches the wheel.
+    tracked = subprocess.run(["git", "ls-files"], cwd=REPO, capture_output=True, text=True, check=True).stdout
+    for name in tracked.splitlines():
+        (source / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(REPO / name, source / name)
     build = subprocess.run(
-        [py, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-w", str(dist), str(REPO)],
+        [py, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-w", str(dist), str(source)],
         capture_output=True,
         text=True,
         timeout=600,
