@@ -137,6 +137,11 @@ class GenerateConfig:
             missing = next((i for i, ic in enumerate(ics) if "actions" not in ic), None)
             if missing is not None:
                 raise ValueError(f'--expert=replay: initial condition {missing} has no "actions"')
+            for i, ic in enumerate(ics):  # refused here, not by a worker midway through the run
+                try:
+                    ReplayActions().load(ic["actions"])
+                except (ValueError, TypeError) as err:
+                    raise ValueError(f"--expert=replay: initial condition {i}: {err}") from None
             if self.disturbances:
                 raise ValueError("--expert=replay repeats undisturbed episodes: drop --disturbances")
         check_sampler(self.sampler)

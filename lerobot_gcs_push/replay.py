@@ -34,7 +34,10 @@ class ReplayActions:
         self._k = 0
 
     def load(self, actions) -> None:
-        actions = np.asarray(actions, np.float32)
+        try:
+            actions = np.asarray(actions, np.float32)
+        except (ValueError, TypeError):  # ragged rows, or not numbers
+            raise ValueError("replayed actions must be rows of numbers, all of one length") from None
         if actions.ndim != 2 or len(actions) == 0 or not np.all(np.isfinite(actions)):
             raise ValueError(f"replayed actions must be a non-empty list of finite rows, got shape {actions.shape}")
         self._actions = actions

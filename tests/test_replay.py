@@ -104,6 +104,10 @@ def test_replay_settings_are_checked_before_any_run(tmp_path):
         GenerateConfig(initial_conditions=str(acted), disturbances=True)
     with pytest.raises(ValueError, match="finite rows"):
         ReplayActions().load([[0.0, float("nan")]])
+    for bad in ([], [[0.0, "x"]], [[0.0, 1.0], [2.0]]):  # named with its entry before any run
+        acted.write_text(json.dumps([{"box": [2.0, 1.0], "finger": [-2.0, 0.5], "actions": bad}]))
+        with pytest.raises(ValueError, match="initial condition 0: replayed actions"):
+            GenerateConfig(initial_conditions=str(acted))
 
 
 def test_actions_are_written_exactly():
