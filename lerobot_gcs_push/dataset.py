@@ -32,7 +32,7 @@ import numpy as np
 from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.pusht_dataset import PUSHT_FEATURE_KEYS, PushTFrames, pusht_features
 from lerobot_gcs_push.registration import ENV_ID, PUSHT_ENV_ID, SCENES, sample_starts
-from lerobot_gcs_push.replay import REPLAY_META, ReplayActions, dataset_replay, write_replay
+from lerobot_gcs_push.replay import REPLAY_META, START_KEYS, ReplayActions, dataset_replay, write_replay
 from lerobot_gcs_push.scene import (
     Disturbances,
     Scene,
@@ -455,7 +455,7 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
     t0 = time.perf_counter()
     if cfg.initial_conditions:
         # A file's other keys (a branch state's source) stay out of the jobs.
-        keys = ("box", "finger", "heading", "pusht_state", "actions")
+        keys = (*START_KEYS, "actions")
         ics = [{k: ic[k] for k in keys if k in ic} for ic in load_initial_conditions(cfg.initial_conditions, scene)]
     else:
         max_attempts = int(np.ceil(cfg.episodes * cfg.max_attempts_factor)) + 10

@@ -87,15 +87,14 @@ def dataset_replay(root: Path, metas: list[dict]) -> tuple[list[dict], list[np.n
     action = np.concatenate([np.stack(t.column("action").to_numpy(zero_copy_only=False)) for t in tables]).astype(
         np.float32
     )
-    starts, actions = [], []
+    # One sort by (episode, frame), then a split: each episode's rows in frame order.
+    order = np.lexsort((frame, episode))
+    counts = np.bincount(episode, minlength=len(metas))
     for i, meta in enumerate(metas):
-        rows = np.flatnonzero(episode == i)
-        rows = rows[np.argsort(frame[rows])]
-        if len(rows) != meta["num_frames"]:
-            raise ValueError(f"episode {i} of {root} has {len(rows)} frames, its metadata says {meta['num_frames']}")
-        starts.append(start_of(meta))
-        actions.append(action[rows])
-    return starts, actions
+        if counts[i] != meta["num_frames"]:
+            raise ValueError(f"episode {i} of {root} has {counts[i]} frames, its metadata says {meta['num_frames']}")
+    actions = np.split(action[order], np.cumsum(counts)[:-1])
+    return [start_of(meta) for meta in metas], actions
 
 
 def start_of(meta: dict) -> dict:
