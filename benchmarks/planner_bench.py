@@ -35,7 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_gcs_push.planner import GcsPlanner, Speeds
+from lerobot_gcs_push.planner import GcsPlanner
+from lerobot_gcs_push.planning import Speeds
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
 # The Drake oracle lives with the tests, which are no package (`tests.drake_oracle` would resolve to the

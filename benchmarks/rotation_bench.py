@@ -29,7 +29,8 @@ import numpy as np
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
-from lerobot_gcs_push.contact import ContactPlanner, PlanningError  # noqa: E402
+from lerobot_gcs_push.contact import ContactPlanner
+from lerobot_gcs_push.planning import PlanningError  # noqa: E402
 from lerobot_gcs_push.registration import SCENES, SE2_ENV_ID, TEE_ENV_ID  # noqa: E402
 from lerobot_gcs_push.scene import Scene  # noqa: E402
 
@@ -132,7 +133,7 @@ def execute(env_id: str, planner: ContactPlanner, starts, mode: str) -> dict:
         replans.append(res["replans"])
         if res["success"]:
             sim_time.append(res["sim_time_s"])
-            over_plan.append(res["sim_time_s"] / expert.plan.duration())
+            over_plan.append(res["sim_time_s"] / expert.plan.duration(expert.speeds))
     env.close()
     return {
         f"{mode}_success_frac": ok / len(starts),

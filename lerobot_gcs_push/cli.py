@@ -19,7 +19,7 @@ from lerobot_gcs_push.dataset import GenerateConfig
 from lerobot_gcs_push.evaluation import EvaluateConfig
 from lerobot_gcs_push.improve import ImproveConfig
 from lerobot_gcs_push.registration import ENV_ID
-from lerobot_gcs_push.scene import Scene, is_finite_number, load_initial_conditions
+from lerobot_gcs_push.scene import is_finite_number, load_initial_conditions
 from lerobot_gcs_push.shipped import shipped_path
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")  # nothing here may reach the network unless asked to
@@ -113,7 +113,8 @@ class DemoConfig:
 
 
 def run_plan(cfg: PlanConfig) -> None:
-    from lerobot_gcs_push.planner import GcsPlanner
+    from lerobot_gcs_push.expert import speeds_for
+    from lerobot_gcs_push.planning import PlanningError, make_planner
     from lerobot_gcs_push.registration import SCENES
 
     queries = (
@@ -126,53 +127,34 @@ def run_plan(cfg: PlanConfig) -> None:
         what = f"{cfg.initial_conditions!r} entry {i}" if cfg.initial_conditions else "plan"
         heading = float(q.get("heading", cfg.heading)) if scene.rotates else 0.0
         scene.validate_state(q["box"], q["finger"], heading=heading, what=what, box_limit=scene.box_reach)
-    if scene.rotates:
-        return _plan_through_contact(cfg, queries)
-    planner = GcsPlanner(Scene(), method=cfg.method)
+    planner = make_planner(scene, cfg.method)
     for q in queries:
-        plan = planner.plan(q["box"], q["finger"], goal=cfg.goal, method=cfg.method)
+        slider = [*q["box"], float(q.get("heading", cfg.heading))] if scene.rotates else q["box"]
+        try:
+            plan = planner.plan(slider, q["finger"], cfg.goal)
+        except PlanningError as err:  # one query's failure is a line of output, not the end of the file
+            print(
+                json.dumps({"slider": slider, "finger": q["finger"], "error": str(err)})
+                if cfg.jsonl
+                else f"no plan: {err}",
+                flush=True,
+            )
+            continue
         if cfg.jsonl:
             print(json.dumps(plan.to_json()), flush=True)
             continue
-        print(
-            f"cost {plan.cost:.4f} m (lower bound {plan.lower_bound:.4f}), {plan.num_pushes} push(es), "
-            f"solved in {plan.solve_time_s * 1e3:.1f} ms with {plan.method}"
-        )
-        print("modes: " + " -> ".join(plan.modes or ["(box already at the goal)"]))
-        print(f"box ends at {plan.box_final.round(4).tolist()}, execution takes {plan.duration():.1f} s")
-
-
-def _plan_through_contact(cfg: PlanConfig, queries: list[dict]) -> None:
-    from lerobot_gcs_push.contact.planner import ContactPlanner, PlanningError
-    from lerobot_gcs_push.registration import SCENES
-
-    planner = ContactPlanner(SCENES[cfg.env_id])
-    for q in queries:
-        pose = [*q["box"], float(q.get("heading", cfg.heading))]
-        try:
-            plan = planner.plan(pose, q["finger"])
-        except PlanningError as err:  # one query's failure is a line of output, not the end of the file
-            print(
-                json.dumps({"slider_pose": pose, "finger": q["finger"], "error": str(err)})
-                if cfg.jsonl
-                else f"no plan: {err}"
-            )
-            continue
-        final = plan.slider_poses[-1].round(4).tolist()
-        if cfg.jsonl:
-            print(json.dumps(plan.to_json() | {"slider_final": final}), flush=True)
-            continue
-        print(
-            f"cost {plan.cost:.4f} ({_bound_text(plan)}), "
-            f"solved in {plan.solve_time_s:.2f} s; modes: {' -> '.join(plan.modes)}"
-        )
-        print(f"slider ends at {final} (x, y, heading)")
+        took = f"{plan.solve_time_s:.2f} s" if scene.rotates else f"{plan.solve_time_s * 1e3:.1f} ms"
+        print(f"cost {plan.cost:.4f} ({_bound_text(plan)}), {plan.num_pushes} push(es), solved in {took}")
+        print("modes: " + " -> ".join(plan.modes or ["(already at the goal)"]))
+        final = plan.slider_final.round(4).tolist()
+        where = f"slider ends at {final} (x, y, heading)" if scene.rotates else f"box ends at {final}"
+        print(f"{where}, execution takes {plan.duration(speeds_for(scene)):.1f} s")
 
 
 def _bound_text(plan) -> str:
     if plan.lower_bound is None:
         return "lower bound uncertified: the relaxation's dual residual was too large to vouch for it"
-    return f"certified lower bound {plan.lower_bound:.4f}, gap {plan.gap_text()}"
+    return f"certified lower bound {plan.lower_bound:.4f}, gap {plan.gap_text()}, {plan.method}"
 
 
 def _plain(value):

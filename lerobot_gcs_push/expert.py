@@ -1,19 +1,17 @@
-"""GCS experts that act in `GcsPushBox-v0`, the paper's open-loop policy and a closed-loop one, and the
-GCS cost-to-go that scores any policy's chunks (regret).
-
-The experts are plain policies (`rollout.Policy`) over the env's true state (`info["box"]`,
-`info["finger"]`); the env knows nothing about them.
+"""The scene's GCS expert (`make_expert`: its planner, speeds and replan rule, for the one expert of
+`planning.expert`), its settings (`ExpertConfig`), and the box's GCS cost-to-go that scores any policy's
+chunks (regret).
 """
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from lerobot_gcs_push.planner import GcsPlanner, Plan, SolverError, Speeds
-from lerobot_gcs_push.planner.plan import DWELL, PUSH, Schedule
+from lerobot_gcs_push.planner import GcsPlanner, plannable
+from lerobot_gcs_push.planning import PlanningError, Speeds, make_planner
+from lerobot_gcs_push.planning.expert import BOX_RULE, TURNING_RULE, PlanExpert
 
 EXPERTS = ("open-loop", "closed-loop")
 # gym-pusht's block is first order (it stops the moment the push does): no dwell. Its agent is steered onto
@@ -22,6 +20,9 @@ EXPERTS = ("open-loop", "closed-loop")
 # with 34 replans; at 1 / 0.5 m/s, seed 2026's first three took 10-27 s and the fourth over 6 min of
 # replanning; steered, at 2 / 1 m/s, seed 77's two failures and one more succeeded in 4-9 s.
 PUSHT_SPEEDS = Speeds(free=2.0, approach=1.0, push=1.0, retreat=2.0, push_dwell_s=0.0, push_lead=0.0)
+# A slider that turns in the Drake sim: the box's speeds and lead, no dwell: its plans chain pushes, and the
+# closed-loop expert replans where a push ended elsewhere.
+TURNING_SPEEDS = Speeds(push_dwell_s=0.0)
 
 
 def check_cost_to_go(env_id: str, needed_by: str = "") -> None:
@@ -38,25 +39,24 @@ def check_cost_to_go(env_id: str, needed_by: str = "") -> None:
 
 
 def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=None):
-    """The scene's GCS expert: over the box's modes (`GcsExpert`) or, for a rotating slider, through contact
-    (`contact.expert.ContactExpert`). `planner` shares one planner between experts (it is costly to build)."""
+    """The scene's GCS expert: the planner that serves it (`planning.make_planner`), with the speeds and the
+    replan rule for its slider; in pixels, with its agent steered, for a scene with a frame (gym-pusht).
+    `planner` shares one planner between experts (it is costly to build)."""
     config = config or ExpertConfig()
-    if scene.rotates:
-        from lerobot_gcs_push.contact import ContactPlanner
-        from lerobot_gcs_push.contact.expert import ContactExpert
+    planner = planner or make_planner(scene, config.method)
+    expert = PlanExpert(planner, fps, config, speeds_for(scene), TURNING_RULE if scene.rotates else BOX_RULE)
+    if scene.frame is not None:
+        from lerobot_gcs_push.pusht_agent import PixelActions, steered
 
-        if config.method != "relaxation":
-            raise ValueError(f"a rotating slider plans with the relaxation only, not {config.method!r}")
-        if scene.frame is not None:  # gym-pusht: pixels, its agent's dynamics inverted, speeds it can follow
-            from lerobot_gcs_push.contact.expert import PixelActions
-            from lerobot_gcs_push.pusht_agent import target_for
+        return PixelActions(expert, scene.frame, steered)
+    return expert
 
-            expert = ContactExpert(planner or ContactPlanner(scene), fps, config, PUSHT_SPEEDS)
-            return PixelActions(
-                expert, scene.frame, lambda info, px: target_for(info["pos_agent"], info["vel_agent"], px)
-            )
-        return ContactExpert(planner or ContactPlanner(scene), fps, config)
-    return GcsExpert(planner or GcsPlanner(scene, method=config.method), fps, config)
+
+def speeds_for(scene) -> Speeds:
+    """The finger speeds the scene's expert runs its plans at."""
+    if scene.frame is not None:
+        return PUSHT_SPEEDS
+    return TURNING_SPEEDS if scene.rotates else Speeds()
 
 
 @dataclass
@@ -74,87 +74,6 @@ class ExpertConfig:
             raise ValueError(f"unknown expert {self.mode!r}: choose one of {EXPERTS}")
         if self.replan_every < 1:
             raise ValueError(f"replan_every must be >= 1, got {self.replan_every}")
-
-
-class GcsExpert:
-    def __init__(
-        self, planner: GcsPlanner, fps: float, config: ExpertConfig | None = None, speeds: Speeds | None = None
-    ):
-        self.planner, self.fps = planner, fps
-        self.config = config or ExpertConfig()
-        self.speeds = speeds or Speeds()
-        self.plans: list[Plan] = []
-        self.plan_time_s = 0.0
-        self._schedule: Schedule | None = None
-        self._k = 0
-        self._steps = 0
-
-    @property
-    def plan(self) -> Plan | None:
-        """The first plan of the episode (the open-loop plan)."""
-        return self.plans[0] if self.plans else None
-
-    def reset(self, obs, info: dict, seed: int | None = None) -> None:
-        """Plan from the episode's initial state (the seed is unused: the experts are deterministic)."""
-        self.plans, self.plan_time_s, self._steps = [], 0.0, 0
-        self._goal = info["goal"]
-        self._replan(info["box"], info["finger"])
-        self._initial_plan_time_s = self.plan_time_s
-
-    def episode_summary(self) -> dict:
-        # Paper IV-B: the plan made before execution is plan time; replanning during it is run time.
-        return {"plan_time_s": self._initial_plan_time_s, "plan": self.plan, "replans": len(self.plans) - 1}
-
-    def _replan(self, box, finger) -> Plan:
-        box, finger = plannable(self.planner.scene, box, finger)
-        t0 = time.perf_counter()
-        plan = self.planner.plan(box, finger, self._goal, method=self.config.method)
-        self.plan_time_s += time.perf_counter() - t0
-        self.plans.append(plan)
-        self._schedule, self._k = plan.schedule(self.fps, self.speeds, self.planner.scene.push_lag_s), 0
-        return plan
-
-    def act(self, obs, info: dict) -> np.ndarray:
-        """The next finger command, given the measured box and finger positions."""
-        box, finger = info["box"], info["finger"]
-        if self.config.mode == "closed-loop" and self._should_replan(box):
-            self._replan(box, finger)
-        sched = self._schedule
-        cmd = sched.commands[min(self._k, len(sched) - 1)]
-        self._k += 1
-        self._steps += 1
-        return cmd.copy()
-
-    def _should_replan(self, box) -> bool:
-        cfg, sched = self.config, self._schedule
-        if len(self.plans) > cfg.max_replans or self._steps % cfg.replan_every:
-            return False
-        if self._k >= len(sched):
-            return True  # ran out without the env declaring success: start again from here
-        i = max(self._k - 1, 0)
-        if sched.kinds[i] in (PUSH, DWELL):
-            return False  # the box moves with the finger's lag here; judge it once the push has ended
-        return bool(np.linalg.norm(np.asarray(box) - sched.box[i]) > cfg.replan_tolerance)
-
-
-def plannable(scene, box, finger, clearance: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
-    """A measured state the planner accepts: contact compliance lets the finger sink a millimetre into
-    the box, and a disturbance may knock the box past the planner's reach."""
-    box = np.clip(np.asarray(box, float), -scene.box_reach, scene.box_reach)
-    finger = np.asarray(finger, float).copy()
-    if scene.finger_box_gap(box, finger) >= clearance:
-        return box, finger
-    # Move the centre straight away from the nearest point of the box (off a corner, that is diagonal).
-    nearest = box + np.clip(finger - box, -scene.box_half, scene.box_half)
-    away = finger - nearest
-    if np.linalg.norm(away) < 1e-9:  # the centre is inside the box: leave by the nearest face
-        r = finger - box
-        axis = int(np.argmax(np.abs(r)))
-        away = np.zeros(2)
-        away[axis] = np.sign(r[axis]) or 1.0
-        nearest = box.copy()
-        nearest[axis] += away[axis] * scene.box_half
-    return box, nearest + away / np.linalg.norm(away) * (scene.finger_radius + clearance)
 
 
 class CostToGo:
@@ -179,7 +98,7 @@ class CostToGo:
         box, finger = plannable(scene, box, finger)
         try:
             return float(self.planner.plan(box, finger).cost)
-        except (SolverError, ValueError):
+        except (PlanningError, ValueError):
             return float("nan")
 
 

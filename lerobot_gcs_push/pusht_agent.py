@@ -32,3 +32,28 @@ def target_for(position, velocity, goal) -> np.ndarray:
     later."""
     (a, b, c) = _MAP[0]
     return (np.asarray(goal, float) - a * np.asarray(position, float) - b * np.asarray(velocity, float)) / c
+
+
+class PixelActions:
+    """An expert in metres acting in a target that takes pixel actions (`scene.frame`): its commands are
+    mapped to pixels, everything else (its state from `info`, plans, summaries) is the expert's own.
+    `track(info, point)`, if given, turns the point where the expert wants the finger one action later into
+    the action that puts it there (`steered` for gym-pusht's PD agent)."""
+
+    def __init__(self, expert, frame, track=None):
+        self.expert, self.frame, self.track = expert, frame, track
+
+    def __getattr__(self, name):
+        return getattr(self.expert, name)
+
+    def reset(self, obs, info: dict, seed: int | None = None) -> None:
+        self.expert.reset(obs, info, seed)
+
+    def act(self, obs, info: dict) -> np.ndarray:
+        point = self.frame.to_px(self.expert.act(obs, info))
+        return point if self.track is None else self.track(info, point)
+
+
+def steered(info: dict, point) -> np.ndarray:
+    """gym-pusht's action that stands its agent on `point` (px) one action later (its state from `info`)."""
+    return target_for(info["pos_agent"], info["vel_agent"], point)

@@ -146,7 +146,7 @@ def _run(job: TrainJob, args: list[str], out: Path, offset: int, desc: str, tqdm
     exported = checkpoint_step(out)
     bar = tqdm(total=job.steps, initial=offset + exported, desc=desc, unit="step", dynamic_ncols=True)
     with (
-        open(log, "a") as logf,
+        open(log, "a", buffering=1) as logf,  # line by line: a long run is followed with tail -f
         subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env, bufsize=1) as proc,
     ):
         for line in proc.stdout:

@@ -75,7 +75,8 @@ def test_the_planner_through_contact_prints_plain_numbers():
     """The Python API's own message (a finger inside the slider) lists plain floats."""
     import numpy as np
 
-    from lerobot_gcs_push.contact import ContactPlanner, PlanningError
+    from lerobot_gcs_push.contact import ContactPlanner
+    from lerobot_gcs_push.planning import PlanningError
 
     planner = ContactPlanner(SCENES["GcsPushBoxSE2-v0"])
     with pytest.raises(ValueError) as err:

@@ -13,7 +13,6 @@ from conftest import gcs_push
 
 import lerobot_gcs_push  # noqa: F401  (registers the envs)
 from lerobot_gcs_push.contact import ContactPlanner
-from lerobot_gcs_push.contact.expert import plannable
 from lerobot_gcs_push.contact.non_collision import Region, free_regions
 from lerobot_gcs_push.evaluation import read_runs
 from lerobot_gcs_push.registration import SCENES, SE2_ENV_ID, TEE_ENV_ID
@@ -65,7 +64,7 @@ def test_a_measured_finger_is_moved_into_a_free_piece_clear_of_the_slider(planne
     finger = pose[:2] + np.array([c * local[0] - s * local[1], s * local[0] + c * local[1]])
     with pytest.raises(ValueError, match="free-space pieces"):
         planner.query(pose, finger)
-    pose2, finger2 = plannable(planner, pose, finger)
+    pose2, finger2 = planner.plannable(pose, finger)
     np.testing.assert_array_equal(pose2, pose)
     planner.query(pose2, finger2)  # accepted now
     assert SE2.shape.signed_distance(pose, finger2) >= SE2.finger_radius  # clear of the slider (shapes.py)
@@ -84,7 +83,7 @@ def test_a_plan_depends_on_its_query_not_on_the_plans_before(planner):
 
 def test_a_slider_knocked_past_the_planners_reach_is_brought_back(planner):
     reach = planner.model.reach
-    pose, finger = plannable(planner, (reach + 0.3, 0.0, 0.2), (reach + 0.3, 2.5))
+    pose, finger = planner.plannable((reach + 0.3, 0.0, 0.2), (reach + 0.3, 2.5))
     assert pose[0] == pytest.approx(reach) and np.allclose(finger, (reach + 0.3, 2.5))
 
 
@@ -189,17 +188,18 @@ def test_demonstrations_of_the_rotating_box_replay_in_the_sim_and_end_at_the_goa
 
 def test_push_commands_lead_the_plan_by_the_fingers_lag_but_never_past_the_pushs_end():
     """A hand-made plan: 1 m free along -y, then a 0.2 m push along +x in two knots. At 0.4 m/s the
-    finger trails by 0.4 * lag_s; commands run that far ahead, capped at the push's end point."""
-    from lerobot_gcs_push.contact.plan import ContactPlan
-    from lerobot_gcs_push.planner.plan import FREE, PUSH, Speeds
+    finger trails by 0.4 * lag_s; commands run that far ahead, capped at the push's end point (no dwell
+    follows a turning slider's pushes: its speeds, expert.speeds_for)."""
+    from lerobot_gcs_push.expert import speeds_for
+    from lerobot_gcs_push.planning import FREE, PUSH, Plan
 
     fingers = np.array([[0.0, 1.0], [0.0, 0.0], [0.1, 0.0], [0.2, 0.0]])
     poses = np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.1, 0.0, 0.0], [1.2, 0.0, 0.0]])
-    plan = ContactPlan("test", 1.0, 0.5, 0.0, [], poses, fingers, [FREE, PUSH, PUSH], np.zeros(3))
-    speeds, lag_s = Speeds(), 0.5
+    plan = Plan("test", 1.0, 0.5, 0.0, [], poses, fingers, [FREE, PUSH, PUSH], np.zeros(3))
+    speeds, lag_s = speeds_for(SE2), 0.5
     lead = speeds.push_lead * lag_s * speeds.push  # 0.17 m
     sched = plan.schedule(10, speeds, lag_s)
-    plain = plan.commands(10)
+    plain = plan.commands(10, speeds)
     assert len(sched) == len(plain) == 15  # 1 s free + 0.5 s of push at 10 fps
     np.testing.assert_allclose(sched.commands[:10], plain[:10])  # no lead outside the push
     for k in range(10, 15):
@@ -207,7 +207,7 @@ def test_push_commands_lead_the_plan_by_the_fingers_lag_but_never_past_the_pushs
         assert sched.commands[k, 0] == pytest.approx(min(on_plan + lead, 0.2))
         assert sched.commands[k, 1] == pytest.approx(0.0)
     assert sched.kinds[:10] == [FREE] * 10 and sched.kinds[10:] == [PUSH] * 5
-    np.testing.assert_allclose(sched.box[-1], poses[-1])  # the reference pose: the plan's slider pose
+    np.testing.assert_allclose(sched.slider[-1], poses[-1])  # the reference pose: the plan's slider pose
 
 
 def test_a_push_after_free_motion_is_reached_along_its_faces_normal_unless_that_point_is_blocked():
@@ -215,19 +215,19 @@ def test_a_push_after_free_motion_is_reached_along_its_faces_normal_unless_that_
     contact point (0, -0.5) on the face whose body-frame normal is -x (in the world: -y), then two chained
     pushes along +y. 0.2 m of approach: the free motion ends at (0, -0.7), then 0.2 m at 0.25 m/s to the
     contact; the chained push gets none. Where the approach point is not clear, the plan is unchanged."""
-    from lerobot_gcs_push.contact.plan import ContactPlan
-    from lerobot_gcs_push.planner.plan import APPROACH, FREE, PUSH, Speeds
+    from lerobot_gcs_push.expert import speeds_for
+    from lerobot_gcs_push.planning import APPROACH, FREE, PUSH, Plan
 
     fingers = np.array([[1.0, -0.5], [0.0, -0.5], [0.0, -0.4], [0.0, -0.3]])
     poses = np.array([[0.0, 0.0, np.pi / 2], [0.0, 0.0, np.pi / 2], [0.0, 0.1, np.pi / 2], [0.0, 0.2, np.pi / 2]])
     pushes = [{"face": 0, "normal": np.array([-1.0, 0.0])}]
-    plan = ContactPlan("test", 1.0, 0.5, 0.0, [], poses, fingers, [FREE, PUSH, PUSH], np.zeros(3), pushes)
+    plan = Plan("test", 1.0, 0.5, 0.0, [], poses, fingers, [FREE, PUSH, PUSH], np.zeros(3), pushes)
 
     path, slider, kinds = plan.with_approaches(0.2)
     np.testing.assert_allclose(path, [[1.0, -0.5], [0.0, -0.7], [0.0, -0.5], [0.0, -0.4], [0.0, -0.3]], atol=1e-12)
     assert kinds == [FREE, APPROACH, PUSH, PUSH]
     np.testing.assert_allclose(slider[1], poses[1])  # the slider rests while the finger approaches
-    speeds = Speeds()
+    speeds = speeds_for(SE2)
     sched = plan.schedule(10, speeds, approach_m=0.2)
     free_s, approach_s, push_s = np.hypot(1.0, 0.2) / speeds.free, 0.2 / speeds.approach, 0.2 / speeds.push
     assert len(sched) == int(np.ceil((free_s + approach_s + push_s) * 10 - 1e-9))
@@ -245,8 +245,8 @@ def test_a_start_with_no_plan_is_a_failed_run_not_a_crash(monkeypatch):
     whole `generate` once). Stood in for by a planner that always fails, so that the test does not hang
     on that start's numerics: the expert holds the finger where it is, and the episode runs out as a
     failure that the generator and the evaluation record."""
-    from lerobot_gcs_push.contact import PlanningError
     from lerobot_gcs_push.expert import ExpertConfig, make_expert
+    from lerobot_gcs_push.planning import PlanningError
     from lerobot_gcs_push.rollout import rollout
 
     env = gym.make(SE2_ENV_ID, max_sim_time_s=1.0, image_size=(32, 32)).unwrapped

@@ -11,9 +11,9 @@ import warnings
 import numpy as np
 import pytest
 
-from lerobot_gcs_push.contact import ContactPlanner, PlanningError
-from lerobot_gcs_push.contact.plan import FREE, PUSH
+from lerobot_gcs_push.contact import ContactPlanner
 from lerobot_gcs_push.contact.relaxation import CERTIFY_TOL, certify, project_dual, solve_with_dual
+from lerobot_gcs_push.planning import FREE, PUSH, PlanningError
 from lerobot_gcs_push.scene import Scene
 
 SCENE = Scene(rotates=True)

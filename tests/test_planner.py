@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from conftest import gcs_push
 
-from lerobot_gcs_push.planner import GcsPlanner, SolverError, brute_force, build_graph
-from lerobot_gcs_push.planner.plan import APPROACH, FREE, PUSH, RETREAT, Speeds
+from lerobot_gcs_push.planner import GcsPlanner, brute_force, build_graph
 from lerobot_gcs_push.planner.restriction import RestrictionCache
+from lerobot_gcs_push.planning import APPROACH, FREE, PUSH, RETREAT, PlanningError, Speeds
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
 SCENE = Scene()
@@ -72,7 +72,7 @@ def test_hand_computed_single_push():
     plan = p.plan([-2.0, 0.0], [-2.0 - da - 0.5, 0.0])
     assert plan.cost == pytest.approx(0.5 + 0.2 + 2.0 + 0.2, abs=1e-5)
     assert plan.modes == ["free:L", "push:L"]
-    np.testing.assert_allclose(plan.box_final, [0.0, 0.0], atol=1e-6)
+    np.testing.assert_allclose(plan.slider_final, [0.0, 0.0], atol=1e-6)
 
 
 def test_hand_computed_two_pushes_around_a_corner():
@@ -89,7 +89,7 @@ def test_hand_computed_two_pushes_around_a_corner():
 
 def test_plans_are_geometrically_valid(solved):
     for ic, rel, _ in solved:
-        fw, bw, kinds = rel.finger_waypoints, rel.box_waypoints, rel.segment_kinds
+        fw, bw, kinds = rel.finger_path, rel.slider_poses, rel.segment_kinds
         np.testing.assert_allclose(fw[0], ic.finger, atol=1e-9)
         np.testing.assert_allclose(bw[-1], SCENE.goal, atol=1e-5)
         for k, kind in enumerate(kinds):
@@ -129,7 +129,7 @@ def test_finger_in_the_corner_nook_escapes_first():
     assert SCENE.finger_box_gap(box, finger) > 0
     plan = GcsPlanner(SCENE).plan(box, finger)
     assert plan.modes[0] == "escape"
-    np.testing.assert_allclose(plan.box_final, SCENE.goal, atol=1e-5)
+    np.testing.assert_allclose(plan.slider_final, SCENE.goal, atol=1e-5)
 
 
 @pytest.mark.parametrize(
@@ -169,7 +169,7 @@ def test_solver_failure_names_solver_and_status(planner):
     prog = planner.program("relaxation")
     src = np.r_[[0.0, 2.0], [0.0, 4.0]]
     prog.set_query(src, np.zeros(2), np.zeros(len(planner.graph.edges)))  # every push edge disabled
-    with pytest.raises(SolverError, match=r"CLARABEL.*infeasible"):
+    with pytest.raises(PlanningError, match=r"CLARABEL.*infeasible"):
         prog.solve()
 
 
@@ -177,9 +177,9 @@ def test_time_parameterisation_respects_speeds(solved):
     speeds = Speeds()
     _, plan, _ = solved[0]
     sched = plan.schedule(10, speeds)
-    steps = np.linalg.norm(np.diff(np.vstack([plan.finger_waypoints[:1], sched.commands]), axis=0), axis=1)
+    steps = np.linalg.norm(np.diff(np.vstack([plan.finger_path[:1], sched.commands]), axis=0), axis=1)
     assert steps.max() <= speeds.free / 10 + 1e-9
-    np.testing.assert_allclose(sched.commands[-1], plan.finger_waypoints[-1])
+    np.testing.assert_allclose(sched.commands[-1], plan.finger_path[-1])
     assert plan.duration(speeds) == pytest.approx(len(sched) / 10, abs=0.1)
 
 
@@ -196,11 +196,11 @@ def test_cli_plan_json_lines(tmp_path):
     objs = [json.loads(line) for line in out if line.startswith("{")]
     assert len(objs) == 2
     for o in objs:
-        for key in ("cost", "lower_bound", "solve_time_s", "method", "modes", "finger_waypoints", "box_final"):
+        for key in ("cost", "lower_bound", "solve_time_s", "method", "modes", "finger_path", "slider_final"):
             assert key in o
-        np.testing.assert_allclose(o["box_final"], [0, 0], atol=1e-5)
+        np.testing.assert_allclose(o["slider_final"], [0, 0], atol=1e-5)
         assert set(o["segment_kinds"]) <= {"free", "approach", "push", "retreat"}
-    assert objs[0]["finger_waypoints"][0] == [-3.0, 0.0]
+    assert objs[0]["finger_path"][0] == [-3.0, 0.0]
 
 
 def test_cli_plan_rejects_overlap():

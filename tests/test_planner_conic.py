@@ -124,7 +124,7 @@ def test_a_plan_does_not_depend_on_earlier_plans():
         used.plan(ic.box, ic.finger)
     a, b = GcsPlanner(SCENE).plan(ics[0].box, ics[0].finger), used.plan(ics[0].box, ics[0].finger)
     assert a.cost == b.cost and a.modes == b.modes
-    np.testing.assert_array_equal(a.finger_waypoints, b.finger_waypoints)
+    np.testing.assert_array_equal(a.finger_path, b.finger_path)
 
 
 def test_a_fresh_planner_plans_without_compiling(compilations):

@@ -2,7 +2,6 @@
 sparse moment blocks, non-collision modes in the slider's frame, a layered mode graph, its convex
 relaxation (Clarabel) and rounding (SNOPT on sampled paths). See planner.py for the entry point."""
 
-from lerobot_gcs_push.contact.plan import ContactPlan
-from lerobot_gcs_push.contact.planner import ContactPlanner, PlanningError
+from lerobot_gcs_push.contact.planner import ContactPlanner
 
-__all__ = ["ContactPlan", "ContactPlanner", "PlanningError"]
+__all__ = ["ContactPlanner"]

@@ -1,4 +1,4 @@
-"""ContactPlanner: plans through contact for a rotating slider.
+"""ContactPlanner, a rotating slider's `planning.Planner`: plans through contact.
 
 planner = ContactPlanner(Scene(rotates=True))
 plan = planner.plan(slider_pose=(x, y, heading), finger=(x, y))    # relaxation + rounding
@@ -19,14 +19,11 @@ from lerobot_gcs_push.contact.face_contact import finger_body
 from lerobot_gcs_push.contact.graph import START, build_graph
 from lerobot_gcs_push.contact.model import HeadingWindow, PushModel
 from lerobot_gcs_push.contact.non_collision import free_regions, knots_of
-from lerobot_gcs_push.contact.plan import ContactPlan, trace
 from lerobot_gcs_push.contact.relaxation import GraphRelaxation, contact_forms
 from lerobot_gcs_push.contact.rounding import Path, ranked_paths, round_relaxation, solve_restriction
-from lerobot_gcs_push.scene import Scene
-
-
-class PlanningError(RuntimeError):
-    pass
+from lerobot_gcs_push.contact.trace import trace
+from lerobot_gcs_push.planning import Plan, PlanningError
+from lerobot_gcs_push.scene import Scene, wrap_angle
 
 
 class ContactPlanner:
@@ -158,19 +155,42 @@ class ContactPlanner:
                 f"{pose.tolist()} (too close to it, or beyond the finger's reach)"
             )
         if goal is None:
-            goal = np.array([*self.model.goal[:2], self.model.goal_heading_near(pose[2])])
+            goal = self.goal_of(pose)
         else:
             goal = np.asarray(goal, float)
             if goal.shape != (3,) or not np.all(np.isfinite(goal)) or np.max(np.abs(goal[:2])) > self.model.reach:
                 raise ValueError(f"goal must be [x, y, heading] within the workspace, got {goal.tolist()}")
         return pose, q, goal, allow
 
+    def goal_of(self, slider_pose) -> np.ndarray:
+        """The goal pose a plan from `slider_pose` ends at: the shape's symmetric copy nearest its heading."""
+        return np.array([*self.model.goal[:2], self.model.goal_heading_near(float(slider_pose[2]))])
+
+    def plannable(self, slider_pose, finger, clearance: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+        """A measured state the planner accepts: the slider's centre within its reach, the finger `clearance`
+        inside the nearest free-space piece (in contact, or off a corner where no piece reaches, it is not)."""
+        model = self.model
+        pose = np.asarray(slider_pose, float).copy()
+        pose[:2] = np.clip(pose[:2], -model.reach, model.reach)
+        c, s = np.cos(pose[2]), np.sin(pose[2])
+        d = np.asarray(finger, float) - pose[:2]
+        q = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+        if any(r.contains(q) for r in self.regions):
+            return pose, np.asarray(finger, float).copy()
+        q = min((r.project(q, clearance) for r in self.regions), key=lambda p: float(np.linalg.norm(p - q)))
+        return pose, pose[:2] + np.array([c * q[0] - s * q[1], s * q[0] + c * q[1]])
+
+    def distance(self, a, b) -> float:
+        """How far apart two slider poses are: metres plus radians times the slider's radius."""
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        return float(np.linalg.norm(a[:2] - b[:2]) + self.model.r_max * abs(wrap_angle(a[2] - b[2])))
+
     def window(self, pose, goal) -> HeadingWindow | None:
         if self.window_margin is None:
             return None
         return HeadingWindow.around(float(pose[2]), float(goal[2]), self.window_margin)
 
-    def plan(self, slider_pose, finger, goal=None) -> ContactPlan:
+    def plan(self, slider_pose, finger, goal=None) -> Plan:
         """The plan from `slider_pose` and `finger` to the scene's goal (or to `goal`, a waypoint)."""
         pose, q, goal, allow = self.query(slider_pose, finger, goal)
         capacity = self.layers * (self.knots - 1) * self.max_step
@@ -244,7 +264,7 @@ class ContactPlanner:
             },
         )
 
-    def baseline(self, slider_pose, finger) -> ContactPlan:
+    def baseline(self, slider_pose, finger) -> Plan:
         """The same nonlinear program without the relaxation: one push per layer, each from the face that
         looks away from the goal, reached by the shortest route, SNOPT from a straight-line guess. (One
         push once sufficed; as the slider turns the round finger's contact rolls toward the face's middle,
@@ -326,9 +346,9 @@ class ContactPlanner:
             finger = end
         return contacts, frees
 
-    def _plan(self, method, r, pose, goal, bound, dt, tried, extra, graph=None) -> ContactPlan:
+    def _plan(self, method, r, pose, goal, bound, dt, tried, extra, graph=None) -> Plan:
         poses, fingers, kinds, modes, pushes = trace(self.model, graph or self.graph, r, pose)
-        return ContactPlan(
+        return Plan(
             method=method,
             cost=r.cost,
             lower_bound=bound,

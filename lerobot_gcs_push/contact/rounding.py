@@ -17,6 +17,7 @@ from lerobot_gcs_push.contact.graph import ContactGraph
 from lerobot_gcs_push.contact.model import PushModel
 from lerobot_gcs_push.contact.non_collision import NlpNonCollision, Region
 from lerobot_gcs_push.contact.relaxation import RelaxationResult, pose_vector
+from lerobot_gcs_push.planning.flow_walk import walk
 
 
 @dataclass(frozen=True)
@@ -71,27 +72,20 @@ def ranked_paths(graph: ContactGraph, res: RelaxationResult, allow) -> list[Path
 
 
 def _walk(graph: ContactGraph, res: RelaxationResult, rng) -> Path | None:
-    def pick(options, flows):
-        w = np.maximum(np.asarray(flows, float), 0.0)
-        if w.sum() <= 1e-6:
-            return None
-        return options[int(np.argmax(w))] if rng is None else options[rng.choice(len(options), p=w / w.sum())]
+    """`flow_walk.walk` over the contact graph: the start's edges are the free modes out of it, a contact
+    vertex's are the free modes out of it and then its edge to the target."""
 
-    starts = graph.starts()
-    f = pick(starts, res.free_flow[starts])
-    frees, contacts = [], []
-    while f is not None:
-        frees.append(f)
-        c = graph.successor(f)
-        contacts.append(c)
-        outs = graph.out_of(c)
-        choice = pick(outs + [-1], list(res.free_flow[outs]) + [res.target_flow[c]])
-        if choice is None:
-            return None
-        if choice == -1:
-            return Path(tuple(frees), tuple(contacts))
-        f = choice
-    return None
+    def out(v):
+        if v == "start":
+            return [(f, graph.successor(f), res.free_flow[f]) for f in graph.starts()]
+        edges = [(f, graph.successor(f), res.free_flow[f]) for f in graph.out_of(v)]
+        return [*edges, ("end", "target", res.target_flow[v])]
+
+    edges = walk(out, "start", "target", rng)
+    if edges is None:
+        return None
+    frees = edges[:-1]
+    return Path(tuple(frees), tuple(graph.successor(f) for f in frees))
 
 
 def solve_restriction(

@@ -2,30 +2,25 @@
 
     planner = GcsPlanner(Scene())                       # builds and compiles the graph once
     plan = planner.plan(box=[2, -1], finger=[-3, 0])    # a solver call per query
-    plan.cost, plan.lower_bound, plan.modes, plan.commands(fps=10)
+    plan.cost, plan.lower_bound, plan.modes, plan.commands(fps=10)      # a planning.Plan
 
 Pure optimisation: no Drake, no env. The modules, from data to answer: `graph` (the mode graph as numpy
 data), `transcription` (its vertices and edges as cvxpy constraints), `gcs` (the shortest-path program:
 relaxation or MICP), `rounding` and `restriction` (from flows to a path, and the path's exact optimum),
-`plan` (waypoints and their timing), `planner` (`GcsPlanner`, which runs them per query).
+`trace` (the plan's waypoints), `planner` (`GcsPlanner`, which runs them per query). Plans, their timing
+and the error are the package's one planning interface (`lerobot_gcs_push.planning`).
 """
 
-from lerobot_gcs_push.planner.gcs import SolverError
 from lerobot_gcs_push.planner.graph import build_graph
-from lerobot_gcs_push.planner.plan import Plan, Schedule, SegmentKind, Speeds
-from lerobot_gcs_push.planner.planner import METHODS, GcsPlanner, Query, check_method
+from lerobot_gcs_push.planner.planner import METHODS, GcsPlanner, Query, check_method, plannable
 from lerobot_gcs_push.planner.restriction import brute_force
 
 __all__ = [
     "METHODS",
     "GcsPlanner",
-    "Plan",
     "Query",
-    "Schedule",
-    "SegmentKind",
-    "SolverError",
-    "Speeds",
     "brute_force",
     "build_graph",
     "check_method",
+    "plannable",
 ]

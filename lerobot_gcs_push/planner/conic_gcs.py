@@ -21,9 +21,10 @@ import numpy as np
 
 from lerobot_gcs_push.planner import gcs, transcription
 from lerobot_gcs_push.planner.conic import Conic, Fixing, Infeasible, ParametricConic, cached
-from lerobot_gcs_push.planner.gcs import FlowSolution, GcsProgram, SolverError, free_coords
+from lerobot_gcs_push.planner.gcs import FlowSolution, GcsProgram, free_coords
 from lerobot_gcs_push.planner.graph import ModeGraph
 from lerobot_gcs_push.planner.restriction import PathSolution
+from lerobot_gcs_push.planning.interface import PlanningError
 
 
 @dataclass
@@ -99,7 +100,7 @@ class ConicGcs:
         return self._fixings[key]
 
     def relax(self, src, goal, allowed) -> ConicQuery:
-        """The relaxation of the query; raises SolverError when it has no optimum."""
+        """The relaxation of the query; raises PlanningError when it has no optimum."""
         conic = self.at(src, goal, allowed)
         t0 = time.perf_counter()
         try:
@@ -111,7 +112,7 @@ class ConicGcs:
         elapsed = time.perf_counter() - t0
         if sol is None or not sol.solved:
             status = "infeasible" if sol is None else sol.status
-            raise SolverError(f"CLARABEL returned status {status!r} on the GCS relaxation")
+            raise PlanningError(f"CLARABEL returned status {status!r} on the GCS relaxation")
         flows = np.clip(sol.x[self.cols.y], 0.0, 1.0)
         return ConicQuery(conic, FlowSolution(sol.value, flows, elapsed, sol.status))
 

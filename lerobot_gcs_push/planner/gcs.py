@@ -30,10 +30,7 @@ import numpy as np
 
 from lerobot_gcs_push.planner.graph import ModeGraph, VertexKind
 from lerobot_gcs_push.planner.transcription import edge_constraint, in_set, vertex_costs
-
-
-class SolverError(RuntimeError):
-    """A solver did not return an optimal solution; the message names the solver and its status."""
+from lerobot_gcs_push.planning.interface import PlanningError
 
 
 @dataclass
@@ -153,11 +150,13 @@ class GcsProgram:
         try:
             self.problem.solve(solver=solver, **solver_opts)
         except cp.SolverError as err:
-            raise SolverError(f"{solver} failed on the GCS {'MICP' if self.integer else 'relaxation'}: {err}") from err
+            raise PlanningError(
+                f"{solver} failed on the GCS {'MICP' if self.integer else 'relaxation'}: {err}"
+            ) from err
         elapsed = time.perf_counter() - t0
         status = self.problem.status
         if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
-            raise SolverError(
+            raise PlanningError(
                 f"{solver} returned status {status!r} on the GCS {'MICP' if self.integer else 'relaxation'}"
             )
         flows = np.clip(np.asarray(self.y.value, float), 0.0, 1.0)

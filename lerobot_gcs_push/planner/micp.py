@@ -24,8 +24,9 @@ from pyscipopt import Model, quicksum
 
 from lerobot_gcs_push.planner.conic import Conic, Infeasible
 from lerobot_gcs_push.planner.conic_gcs import EdgeColumns, parametric
-from lerobot_gcs_push.planner.gcs import FlowSolution, SolverError
+from lerobot_gcs_push.planner.gcs import FlowSolution
 from lerobot_gcs_push.planner.graph import ModeGraph
+from lerobot_gcs_push.planning.interface import PlanningError
 
 
 class ScipMicp:
@@ -51,7 +52,7 @@ class ScipMicp:
         try:
             conic = self.data.at(np.concatenate([src, goal, allowed])).fix(self.cols.fixed(dropped, {}))
         except Infeasible:
-            raise SolverError("SCIP: the GCS MICP is infeasible (no allowed path)") from None
+            raise PlanningError("SCIP: the GCS MICP is infeasible (no allowed path)") from None
         model, x = _model(conic, self.data.boolean[conic.free])
         model.setParams(params or {})
         if cutoff is not None:
@@ -68,7 +69,7 @@ class ScipMicp:
         model.optimize()
         status = model.getStatus()
         if status not in ("optimal", "gaplimit") or model.getNSols() == 0:
-            raise SolverError(f"SCIP returned status {status!r} on the GCS MICP")
+            raise PlanningError(f"SCIP returned status {status!r} on the GCS MICP")
         best = model.getBestSol()
         full = conic.fixed.copy()
         full[conic.free] = [best[v] for v in x]

@@ -1,4 +1,5 @@
-"""`GcsPlanner`: one query in, one `Plan` out; the graph and its programs are built once."""
+"""`GcsPlanner`, the box's `planning.Planner`: one query in, one `Plan` out; the graph and its programs are
+built once."""
 
 from __future__ import annotations
 
@@ -8,11 +9,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from lerobot_gcs_push.planner.conic_gcs import ConicGcs
-from lerobot_gcs_push.planner.gcs import GcsProgram, SolverError
+from lerobot_gcs_push.planner.gcs import GcsProgram
 from lerobot_gcs_push.planner.graph import ModeGraph, SourcePoint, build_graph
 from lerobot_gcs_push.planner.micp import ScipMicp
-from lerobot_gcs_push.planner.plan import FREE, Plan, trace
 from lerobot_gcs_push.planner.rounding import candidate_paths
+from lerobot_gcs_push.planner.trace import trace
+from lerobot_gcs_push.planning import FREE, Plan, PlanningError
 from lerobot_gcs_push.scene import Scene
 
 METHODS = ("relaxation", "micp")
@@ -37,6 +39,26 @@ class Query:
     @property
     def extra_cost(self) -> float:
         return 0.0 if self.escape is None else self.escape
+
+
+def plannable(scene: Scene, box, finger, clearance: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """A measured state the planner accepts: contact compliance lets the finger sink a millimetre into
+    the box, and a disturbance may knock the box past the planner's reach."""
+    box = np.clip(np.asarray(box, float), -scene.box_reach, scene.box_reach)
+    finger = np.asarray(finger, float).copy()
+    if scene.finger_box_gap(box, finger) >= clearance:
+        return box, finger
+    # Move the centre straight away from the nearest point of the box (off a corner, that is diagonal).
+    nearest = box + np.clip(finger - box, -scene.box_half, scene.box_half)
+    away = finger - nearest
+    if np.linalg.norm(away) < 1e-9:  # the centre is inside the box: leave by the nearest face
+        r = finger - box
+        axis = int(np.argmax(np.abs(r)))
+        away = np.zeros(2)
+        away[axis] = np.sign(r[axis]) or 1.0
+        nearest = box.copy()
+        nearest[axis] += away[axis] * scene.box_half
+    return box, nearest + away / np.linalg.norm(away) * (scene.finger_radius + clearance)
 
 
 class GcsPlanner:
@@ -126,7 +148,7 @@ class GcsPlanner:
             if best is None or sol.rank() < best.rank():
                 best = sol
         if best is None or not np.isfinite(best.cost):
-            raise SolverError(
+            raise PlanningError(
                 f"rounding found no feasible path among {len(paths)} candidates "
                 f"(relaxation status {flows.status!r}, value {flows.value:.4f})"
             )
@@ -144,13 +166,23 @@ class GcsPlanner:
             lower_bound=lower,
             solve_time_s=time.perf_counter() - t0,
             modes=modes,
-            finger_waypoints=fw,
-            box_waypoints=bw,
+            finger_path=fw,
+            slider_poses=bw,
             segment_kinds=kinds,
             goal=goal,
             candidates=len(paths),
             extra={"relaxation_time_s": flows.solve_time_s},
         )
+
+    def goal_of(self, box) -> np.ndarray:
+        return self.scene.goal_array
+
+    def plannable(self, box, finger) -> tuple[np.ndarray, np.ndarray]:
+        return plannable(self.scene, box, finger)
+
+    def distance(self, a, b) -> float:
+        """How far apart two box positions are (m)."""
+        return float(np.linalg.norm(np.asarray(a, float) - np.asarray(b, float)))
 
     def _validate(self, box, finger, goal):
         scene = self.scene
@@ -176,8 +208,8 @@ class GcsPlanner:
             lower_bound=0.0,
             solve_time_s=time.perf_counter() - t0,
             modes=[],
-            finger_waypoints=finger[None].copy(),
-            box_waypoints=box[None].copy(),
+            finger_path=finger[None].copy(),
+            slider_poses=box[None].copy(),
             segment_kinds=[],
             goal=goal,
             candidates=0,

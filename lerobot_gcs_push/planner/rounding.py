@@ -1,10 +1,11 @@
-"""Randomised depth-first rounding of relaxed GCS flows into candidate paths."""
+"""Candidate paths from relaxed GCS flows: the flow walk (`flow_walk.walk`) and a flow decomposition."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from lerobot_gcs_push.planner.graph import ModeGraph
+from lerobot_gcs_push.planning.flow_walk import walk
 
 
 def candidate_paths(
@@ -22,8 +23,12 @@ def candidate_paths(
     optimum out of 8 walks); the decomposition takes the widest branches in turn, so none is missed."""
     outs = {v: graph.out_edges(v) for v in range(len(graph.vertices))}
     found: list[tuple[int, ...]] = []
+
+    def out(v):
+        return [(e, graph.edges[e].v, flows[e]) for e in outs[v]]
+
     for trial in range(trials):
-        path = _walk(graph, outs, flows, rng if trial else None, min_flow)
+        path = walk(out, graph.source, graph.target, rng if trial else None, min_flow)
         if path is not None and path not in found:
             found.append(path)
     remaining = np.array(flows, float)
@@ -65,40 +70,3 @@ def _widest_path(graph, outs, flows, min_flow) -> tuple[int, ...] | None:
         edges.append(via[v])
         v = graph.edges[via[v]].u
     return tuple(reversed(edges))
-
-
-def _walk(graph, outs, flows, rng, min_flow) -> tuple[int, ...] | None:
-    stack = [(graph.source, _ranked(outs[graph.source], flows, rng, min_flow))]
-    visited = {graph.source}
-    edges: list[int] = []
-    while stack:
-        v, options = stack[-1]
-        if v == graph.target:
-            return tuple(edges)
-        nxt = None
-        while options:
-            e = options.pop(0)
-            if graph.edges[e].v not in visited:
-                nxt = e
-                break
-        if nxt is None:  # dead end: backtrack
-            stack.pop()
-            visited.discard(v)
-            if edges:
-                edges.pop()
-            continue
-        w = graph.edges[nxt].v
-        visited.add(w)
-        edges.append(nxt)
-        stack.append((w, _ranked(outs[w], flows, rng, min_flow)))
-    return None
-
-
-def _ranked(options, flows, rng, min_flow) -> list[int]:
-    """Out-edges with flow, ordered greedily (rng None) or by weighted sampling without replacement."""
-    opts = [e for e in options if flows[e] > min_flow]
-    if rng is None or len(opts) < 2:
-        return sorted(opts, key=lambda e: -flows[e])
-    w = np.array([flows[e] for e in opts])
-    keys = rng.random(len(opts)) ** (1.0 / w)  # Efraimidis-Spirakis weighted order
-    return [opts[i] for i in np.argsort(-keys)]

@@ -1,0 +1,31 @@
+"""The one planning interface (`interface.Planner`): a query in, one `Plan` out, one `PlanningError`; the one
+rounding walk over relaxed flows (`flow_walk`); the one expert that runs any plan closed loop (`expert`).
+The planners behind it: `planner/` (the box, over its modes) and `contact/` (a slider that turns)."""
+
+from lerobot_gcs_push.planning.interface import Planner, PlanningError, make_planner
+from lerobot_gcs_push.planning.plan import (
+    APPROACH,
+    DWELL,
+    FREE,
+    PUSH,
+    RETREAT,
+    Plan,
+    Schedule,
+    SegmentKind,
+    Speeds,
+)
+
+__all__ = [
+    "APPROACH",
+    "DWELL",
+    "FREE",
+    "PUSH",
+    "RETREAT",
+    "Plan",
+    "Planner",
+    "PlanningError",
+    "Schedule",
+    "SegmentKind",
+    "Speeds",
+    "make_planner",
+]

@@ -1,0 +1,175 @@
+"""The one expert: any `Planner`'s plans, open loop (the first plan, executed) or closed loop (replanned from
+the measured state whenever the slider strays from the plan), as a `rollout.Policy` over the env's true
+state in `info` (`slider_pose`, or the box's `box`, and `finger`); the env knows nothing about it.
+
+What differs between scenes is data the scene chooses (`expert.make_expert`): the speeds, and the
+`ReplanRule` that says how far the slider may stray where.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from lerobot_gcs_push.planning.interface import Planner, PlanningError
+from lerobot_gcs_push.planning.plan import DWELL, FREE, PUSH, Plan, Schedule, Speeds
+
+# Shares of the way from the slider to its goal where a plan is sought when none reaches the goal. A T by
+# gym-pusht's wall, half a turn from its goal (seed 2027's sixth start), had no plan to the goal, one
+# halfway in 15 s and one a quarter of the way in 10 s.
+WAYPOINTS = (0.5, 0.25)
+
+
+@dataclass(frozen=True)
+class ReplanRule:
+    """Where the closed-loop expert judges the slider against its plan, and at what share of the config's
+    `replan_tolerance` (every `replan_every` steps; a plan that has run out is always replanned)."""
+
+    # While a push runs (or its dwell holds), the finger's lag moves the slider off the reference: judged
+    # there only at this multiple of the tolerance (inf: never).
+    during_push: float
+    # Before the plan's first push, the last plan's push may still be draining into the slider.
+    before_first_push: float
+    # Which command's segment tells whether a push runs: the next one to be sent (True) or the last sent.
+    by_next_command: bool
+    approach_m: float = 0.0  # `Plan.schedule`'s approach along a push's face normal (plans through contact)
+
+
+# The box: judged only between pushes, at the tolerance (a pushed box moves with the finger's lag and is
+# judged once the push and its dwell have ended).
+BOX_RULE = ReplanRule(during_push=math.inf, before_first_push=1.0, by_next_command=False)
+# A slider that turns. Judged everywhere at the tolerance, a T replanned every second, each new plan backing
+# the finger off the face it pushed on, and crept to the goal at a quarter of the push speed (5 of 10
+# demonstrations failed so); within a push only a slider that has turned away (5 times the tolerance) is
+# replanned. The last 5 cm before a push that follows free motion run along the face's normal: arriving
+# along its free path the finger touched the T 5-10 cm from the planned contact, and near the goal turned
+# it away; 0.2 m (the box planner's transition buffer) doubled the T's episode time, since every replan
+# backs the finger off its face (16 sobol starts, experiments/rotation/README.md).
+TURNING_RULE = ReplanRule(during_push=5.0, before_first_push=5.0, by_next_command=True, approach_m=0.05)
+
+
+class PlanExpert:
+    """`rollout.Policy` running `planner`'s plans at `fps`. `config` is an `expert.ExpertConfig` (mode,
+    replan_every, replan_tolerance, max_replans)."""
+
+    def __init__(self, planner: Planner, fps: float, config, speeds: Speeds | None = None, rule=BOX_RULE):
+        self.planner, self.fps, self.config, self.rule = planner, fps, config, rule
+        self.speeds = speeds or Speeds()
+        self.plans: list[Plan] = []
+        self.plan_time_s = 0.0
+        self.failed_replans = 0
+        self._schedule: Schedule | None = None
+        self._failed_at = None
+        self._k = self._steps = 0
+
+    @property
+    def plan(self) -> Plan | None:
+        """The first plan of the episode (the open-loop plan)."""
+        return self.plans[0] if self.plans else None
+
+    def reset(self, obs, info: dict, seed: int | None = None) -> None:
+        """Plan from the episode's initial state (the seed is unused: a plan depends on its query only)."""
+        self.plans, self.plan_time_s, self._steps, self.failed_replans = [], 0.0, 0, 0
+        self._failed_at = None
+        self.planner.warm_up()  # a one-time compile is not the episode's plan time
+        try:
+            self._replan(info)
+        except PlanningError:  # no plan from here (1 start in 10 of the T's): the finger holds; a failed run
+            self._failed(info)
+            finger = np.asarray(info["finger"], float)
+            self._schedule, self._k = Schedule(finger[None], [FREE], _slider(info)[None]), 0
+        self._initial_plan_time_s = self.plan_time_s
+
+    def episode_summary(self) -> dict:
+        # Paper IV-B: the plan made before execution is plan time; replanning during it is run time.
+        return {
+            "plan_time_s": self._initial_plan_time_s,
+            "plan": self.plan,
+            "replans": max(len(self.plans) - 1, 0),
+            "failed_replans": self.failed_replans,
+        }
+
+    def act(self, obs, info: dict) -> np.ndarray:
+        """The next finger command, given the measured slider and finger."""
+        if self.config.mode == "closed-loop" and self._should_replan(info):
+            try:
+                self._replan(info)
+            except PlanningError:  # a state the planner cannot plan from: keep to the old plan, try again later
+                self._failed(info)
+        sched = self._schedule
+        cmd = sched.commands[min(self._k, len(sched) - 1)]
+        self._k += 1
+        self._steps += 1
+        return cmd.copy()
+
+    def _replan(self, info: dict) -> None:
+        slider, finger = self.planner.plannable(_slider(info), info["finger"])
+        t0 = time.perf_counter()
+        try:
+            plan = self._plan(slider, finger)
+        finally:
+            self.plan_time_s += time.perf_counter() - t0
+        self.plans.append(plan)
+        scene = self.planner.scene
+        self._schedule = plan.schedule(self.fps, self.speeds, scene.push_lag_s, self.rule.approach_m, self._clear)
+        self._k = 0
+
+    def _plan(self, slider, finger) -> Plan:
+        """A plan to the goal or, where none is found, to a waypoint part of the way there (the next replan
+        goes on from it)."""
+        try:
+            return self.planner.plan(slider, finger)
+        except PlanningError:
+            if not WAYPOINTS:
+                raise
+            goal = self.planner.goal_of(slider)
+        for i, share in enumerate(WAYPOINTS):
+            try:
+                return self.planner.plan(slider, finger, slider + share * (goal - slider))
+            except PlanningError:
+                if i == len(WAYPOINTS) - 1:
+                    raise
+
+    def _clear(self, pose, point) -> bool:
+        scene = self.planner.scene
+        return scene.shape.signed_distance(pose, point) >= scene.finger_radius - 1e-6
+
+    def strayed_by(self, slider) -> float:
+        """How far the slider is from where the plan has it now (`Planner.distance`)."""
+        ref = self._schedule.slider[min(max(self._k - 1, 0), len(self._schedule) - 1)]
+        return self.planner.distance(slider, ref)
+
+    def _failed(self, info: dict) -> None:
+        self.failed_replans += 1
+        self._failed_at = _state(info)
+
+    def _should_replan(self, info: dict) -> bool:
+        cfg, sched, rule = self.config, self._schedule, self.rule
+        if not self._steps or self._steps % cfg.replan_every or len(self.plans) + self.failed_replans > cfg.max_replans:
+            return False
+        # A plan depends on its query only: from the state where planning failed it fails again. In gym-pusht
+        # a T no plan could move sat still for 30 s of 25 s replans (23 min of wall time, seed 4700's start 32).
+        if self._failed_at is not None and np.allclose(_state(info), self._failed_at, atol=1e-6):
+            return False
+        if self._k >= len(sched):
+            return True  # ran out without the env declaring success: start again from here
+        i = min(self._k, len(sched) - 1) if rule.by_next_command else max(self._k - 1, 0)
+        if sched.kinds[i] in (PUSH, DWELL):
+            share = rule.during_push
+        elif PUSH not in sched.kinds[:i]:
+            share = rule.before_first_push
+        else:
+            share = 1.0
+        return math.isfinite(share) and self.strayed_by(_slider(info)) > cfg.replan_tolerance * share
+
+
+def _slider(info: dict) -> np.ndarray:
+    """The slider's pose: x, y, heading for one that turns (as rollout.py tells them apart), else the box."""
+    return np.asarray(info["slider_pose"] if "slider_pose" in info else info["box"], float)
+
+
+def _state(info: dict) -> np.ndarray:
+    return np.concatenate([_slider(info), np.asarray(info["finger"], float)])
