@@ -5,7 +5,8 @@ A round is four resumable steps:
 1. `gcs-push evaluate --policies='[POLICY]' --sampler=hard ...` rolls the policy out and scores every executed
    chunk against the GCS cost-to-go (`regret_chunks` in `runs.jsonl`);
 2. `gcs-push collect --rollouts='[DIR]' ...` (this module) picks branch states along those rollouts (every
-   chunk start of large regret, and a seeded fraction of the others) and runs the closed-loop GCS expert
+   chunk start of large regret, and a seeded fraction of the others; for a slider that turns, which has no
+   cost-to-go, the chunk starts where coverage stalls, `stalls.py`) and runs the closed-loop GCS expert
    from each to the goal, recorded as a LeRobotDataset like any other (`dataset.generate`);
 3. LeRobot merges it with earlier data (`lerobot-edit-dataset --operation.type=merge`);
 4. `lerobot-train --policy.path=POLICY` fine-tunes on the merge.
@@ -29,6 +30,7 @@ from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.planner import plannable
 from lerobot_gcs_push.registration import ENV_ID, SCENES
 from lerobot_gcs_push.scene import Scene
+from lerobot_gcs_push.stalls import StallRule, stall_branch_states
 
 
 @dataclass
@@ -51,6 +53,9 @@ class CollectConfig:
     max_per_run: int = 12
     # Metres between finger and box at a branch state (contact compliance, Drake's query).
     clearance: float = 0.02
+    # A slider that turns has no cost-to-go to take regrets from: its branch states are where coverage
+    # stalls or falls, in failed runs and in successes slower than the expert's (stalls.py).
+    stall: StallRule = field(default_factory=StallRule)
     # Seeds the choice of the other chunk starts and the expert's episodes.
     seed: int = 0
     # Worker processes (or Ray actors) for the expert's rollouts.
@@ -145,16 +150,23 @@ def rollouts_env_id(folders: list[str]) -> str:
 
 
 def collect(cfg: CollectConfig) -> tuple[GenerateReport, list[dict]]:
-    """Branch states from the rollouts, labelled by the closed-loop GCS expert, as a LeRobotDataset."""
+    """Branch states from the rollouts, labelled by the closed-loop GCS expert, as a LeRobotDataset: chunks
+    of large regret for the box, chunks where coverage stalls for a slider that turns."""
     env_id = rollouts_env_id(cfg.rollouts)
-    check_cost_to_go(env_id, "collect labels the policy's states with it")
+    scene = SCENES[env_id]
     records = []
     for folder in cfg.rollouts:
         for rec in read_runs(Path(folder) / "runs.jsonl"):
             records.append(rec | {"_source": str(folder)})
-    states = branch_states(records, cfg, SCENES[env_id])
+    if scene.rotates:
+        states = stall_branch_states(records, cfg, scene, GCS_POLICIES)
+        why = "no failed or slow run of a learned policy with a stall to branch from"
+    else:
+        check_cost_to_go(env_id, "collect labels the policy's states with it")
+        states = branch_states(records, cfg, scene)
+        why = "did the evaluation record regret for a learned policy?"
     if not states:
-        raise ValueError(f"no branch states in {cfg.rollouts}: did the evaluation record regret for a learned policy?")
+        raise ValueError(f"no branch states in {cfg.rollouts}: {why}")
     gen = GenerateConfig(
         env_id=env_id,
         episodes=len(states),

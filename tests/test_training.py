@@ -85,3 +85,18 @@ def test_a_fresh_job_starts_from_its_initial_policy_and_a_finished_partial_runs_
     _pretrained(tmp_path / "done.partial", step=4)
     other = _job(tmp_path, steps=4, output_dir=tmp_path / "work" / "other", partial=tmp_path / "done.partial")
     assert train(other) == tmp_path / "done.partial" and len(runs) == 1
+
+
+def test_bf16_autocast_only_where_the_machine_has_bf16_units(tmp_path, runs):
+    from lerobot_gcs_push.training import bf16_native
+
+    plain, bf16 = tmp_path / "plain", tmp_path / "bf16"
+    plain.write_text("flags\t\t: fpu sse2 avx2 avx512f\n")
+    bf16.write_text("flags\t\t: fpu sse2 avx2 avx512f avx512_bf16\n")
+    assert not bf16_native("cpu", str(plain)) and bf16_native("cpu", str(bf16))
+    assert bf16_native("cuda:0", str(plain)) and not bf16_native("mps", str(bf16))
+    assert not bf16_native("cpu", str(tmp_path / "missing"))
+    # The machine decides, so a job moved to another machine is the same job (its signature has no use_amp).
+    assert "use_amp" not in _job(tmp_path).signature()
+    train(_job(tmp_path, use_amp=False))
+    assert "--policy.use_amp=false" in runs[0]
