@@ -1,4 +1,6 @@
 """`gcs-push improve`: rounds of active data, from a policy folder or from nothing, until the policy is robust.
+For the box, and for sliders that turn (gym-pusht's PushT: `--config_path=configs/improve/pusht.json`),
+whose branch states are where coverage stalls rather than chunks of large regret (`stalls.py`).
 
 A round: roll the current policy out beside GCS (hard and uniform initial conditions, with and without
 disturbances, on seeds no evaluation set uses) -> stop here if it meets the targets on these fresh
@@ -68,8 +70,9 @@ class RoundConfig:
     hard: int = 80
     uniform: int = 20
     disturbances: bool = True
-    # Simulated seconds before a rollout counts as failed (every evaluation since run 7).
-    timeout_s: float = 60.0
+    # Simulated seconds before a rollout counts as failed (every evaluation since run 7); None: the env's
+    # own (gym-pusht's 300 steps, 30 s).
+    timeout_s: float | None = 60.0
     # Branch from chunks above this regret in successful runs too (rounds 10 and 11: a success's
     # 0.25-0.5 m detours are where the extra time goes; round 11 shortened the path with it).
     large_regret_m: float = 0.25
@@ -151,11 +154,20 @@ class ImproveConfig:
 
     def __post_init__(self) -> None:
         from lerobot_gcs_push.evaluation import check_device
-        from lerobot_gcs_push.expert import check_cost_to_go
+        from lerobot_gcs_push.registration import SCENES
         from lerobot_gcs_push.rollout import check_env_id
         from lerobot_gcs_push.scene import check_sampler, check_seed
 
-        check_cost_to_go(check_env_id(self.env_id), "rounds label the policy's states with it")
+        scene = SCENES[check_env_id(self.env_id)]
+        # A slider that turns has no hard families (they are the box's) and gym-pusht no disturbances:
+        # configs/improve/pusht.json sets its rounds up.
+        if scene.rotates and (self.round.hard or self.validation.hard):
+            raise ValueError(
+                f"{self.env_id} has no hard families (they are the box's): set round.hard=0 and validation.hard=0 "
+                "(its starts are round.uniform and validation.uniform; see configs/improve/pusht.json)"
+            )
+        if scene.frame is not None and self.round.disturbances:
+            raise ValueError(f"{self.env_id} has no disturbances: set round.disturbances=false")
         check_sampler(self.hard_sampler)
         check_seed(self.seed)
         check_seed(self.base.seed, "base.seed")
@@ -189,7 +201,7 @@ class ImproveConfig:
             "validation.margin": self.validation.margin,
             "workers": self.workers,
             "save_freq": self.save_freq,
-            "round.timeout_s": self.round.timeout_s,
+            "round.timeout_s": self.round.timeout_s if self.round.timeout_s is not None else 1.0,
             "round.lr": self.round.lr,
             "stop.max_hours": self.stop.max_hours,
             "stop.time_ratio": self.stop.time_ratio,
@@ -388,6 +400,14 @@ class Improver:
 
     # -- a round ---------------------------------------------------------------------------------------
 
+    @property
+    def expert(self) -> str:
+        """The GCS expert the rounds time the policy against: the paper's open-loop plan for the box; closed
+        loop for a slider that turns, whose open-loop plans reach coverage on 1 start of 20 (contact/)."""
+        from lerobot_gcs_push.registration import SCENES
+
+        return "gcs-closed-loop" if SCENES[self.cfg.env_id].rotates else "gcs-open-loop"
+
     def rollouts(self, k: int) -> list[Path]:
         return [self.work / f"r{k}" / f"rollouts_{s}" for s in ("hard", "uniform")]
 
@@ -401,7 +421,7 @@ class Improver:
                 evaluate(
                     EvaluateConfig(
                         # GCS beside, for the time target; `collect` branches from the learned policy only.
-                        policies=["gcs-open-loop", self.cfg.policy],
+                        policies=[self.expert, self.cfg.policy],
                         env_id=self.cfg.env_id,
                         sampler=sampler,
                         seed=self.seed(k, off),
@@ -419,7 +439,7 @@ class Improver:
 
     def rollout_scores(self, k: int) -> dict:
         """The current policy on round k's rollouts, per sampler: success without and with disturbances,
-        regret, and mean success time over GCS's on the same initial conditions."""
+        regret (the box), and mean success time over the GCS expert's on the same initial conditions."""
         import numpy as np
 
         from lerobot_gcs_push.evaluation import read_runs
@@ -430,7 +450,7 @@ class Improver:
             if not recs:
                 continue
             mine = [r for r in recs if r["policy"] == self.cfg.policy]
-            gcs = [r["sim_time_s"] for r in recs if r["policy"] == "gcs-open-loop" and r["success"]]
+            gcs = [r["sim_time_s"] for r in recs if r["policy"] == self.expert and r["success"]]
             score = {}
             for dist in (False, True):
                 runs = [r for r in mine if r["disturbances"] == dist]

@@ -401,3 +401,59 @@ def test_improve_from_nothing_resumes_after_kill_9_inside_each_stage(tmp_path):
     assert by_hand in (str(policy), candidate)
     wins = sum(bool(r["success"]) for r in validation if r["policy"] == candidate and not r["disturbances"])
     assert saved["rounds"][0]["shipped"] == (by_hand == candidate and wins > 0)
+
+
+def test_pusht_rounds_time_the_policy_against_the_closed_loop_expert_on_gym_pushts_resets(tmp_path, monkeypatch):
+    """configs/improve/pusht.json as `gcs-push improve --config_path` loads it: the rounds' rollouts ask
+    `evaluate` for gym-pusht's own resets (no hard families, no disturbances, the env's 30 s), the policy
+    beside the closed-loop expert, and score the policy's mean success time over the expert's by hand."""
+    import draccus
+
+    import lerobot_gcs_push.evaluation as ev
+    import lerobot_gcs_push.improve as imp
+
+    monkeypatch.chdir(ROOT)
+    _pretrained(tmp_path / "policy", 0.0)
+    cfg = draccus.parse(
+        imp.ImproveConfig,
+        args=[
+            "--config_path=configs/improve/pusht.json",
+            f"--policy={tmp_path / 'policy'}",
+            f"--state_dir={tmp_path / 's'}",
+            f"--work_dir={tmp_path / 'w'}",
+        ],
+    )
+    asked = []
+
+    def evaluate(c):
+        asked.append(c)
+        out = Path(c.output_dir)
+        out.mkdir(parents=True)
+        recs = [  # the expert 10 s and 20 s; the policy 15 s, and a failure
+            {"policy": "gcs-closed-loop", "disturbances": False, "success": True, "sim_time_s": 10.0},
+            {"policy": "gcs-closed-loop", "disturbances": False, "success": True, "sim_time_s": 20.0},
+            {"policy": c.policies[1], "disturbances": False, "success": True, "sim_time_s": 15.0},
+            {"policy": c.policies[1], "disturbances": False, "success": False, "sim_time_s": 30.0},
+        ]
+        (out / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in recs))
+
+    monkeypatch.setattr(ev, "evaluate", evaluate)
+    improver = imp.Improver(cfg)
+    improver.state.stages["r1.rollouts"] = {}
+    improver.run_rollouts(1)
+    (c,) = asked  # the hard set is empty
+    assert c.env_id == "gym_pusht/PushT-v0" and c.sampler == "uniform" and c.num_initial_conditions == 100
+    assert c.policies == ["gcs-closed-loop", cfg.policy] and not c.disturbances and c.timeout_s == 30.0
+    assert not c.regret  # no cost-to-go through contact
+    scores = improver.state.stages["r1.rollouts"]["scores"]
+    assert scores == {"uniform": {"without": 0.5, "time_ratio": 1.0}}  # 15 s over the expert's mean 15 s
+    assert not improver.targets_met(1)  # 0.5 < 0.95
+    with pytest.raises(ValueError, match="no hard families"):
+        imp.ImproveConfig(env_id="gym_pusht/PushT-v0", train_config=cfg.train_config)
+    with pytest.raises(ValueError, match="no disturbances"):
+        imp.ImproveConfig(
+            env_id="gym_pusht/PushT-v0",
+            train_config=cfg.train_config,
+            round=imp.RoundConfig(hard=0),
+            validation=imp.ValidationConfig(hard=0),
+        )
