@@ -113,8 +113,8 @@ class DemoConfig:
 
 
 def run_plan(cfg: PlanConfig) -> None:
-    from lerobot_gcs_push.expert import speeds_for
-    from lerobot_gcs_push.planning import PlanningError, make_planner
+    from lerobot_gcs_push.expert import make_planner, speeds_for
+    from lerobot_gcs_push.planning import PlanningError
     from lerobot_gcs_push.registration import SCENES
 
     queries = (

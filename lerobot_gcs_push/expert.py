@@ -1,6 +1,6 @@
-"""The scene's GCS expert (`make_expert`: its planner, speeds and replan rule, for the one expert of
-`planning.expert`), its settings (`ExpertConfig`), and the box's GCS cost-to-go that scores any policy's
-chunks (regret).
+"""What serves each scene: its planner (`make_planner`) and its GCS expert (`make_expert`: the one expert of
+`planning.expert` with the scene's speeds and replan rule), the expert's settings (`ExpertConfig`), and the
+box's GCS cost-to-go that scores any policy's chunks (regret).
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lerobot_gcs_push.planner import GcsPlanner, plannable
-from lerobot_gcs_push.planning import PlanningError, Speeds, make_planner
+from lerobot_gcs_push.planning import Planner, PlanningError, Speeds
 from lerobot_gcs_push.planning.expert import BOX_RULE, TURNING_RULE, PlanExpert
 
 EXPERTS = ("open-loop", "closed-loop")
@@ -38,8 +38,20 @@ def check_cost_to_go(env_id: str, needed_by: str = "") -> None:
         raise ValueError(f"no GCS cost-to-go for {env_id} yet{f' ({needed_by})' if needed_by else ''}")
 
 
+def make_planner(scene, method: str = "relaxation") -> Planner:
+    """The planner that serves the scene: through contact for a slider that turns (`contact.ContactPlanner`,
+    relaxation only), over its modes for the box (`planner.GcsPlanner`, relaxation or MICP)."""
+    if scene.rotates:
+        from lerobot_gcs_push.contact import ContactPlanner
+
+        if method != "relaxation":
+            raise ValueError(f"a rotating slider plans with the relaxation only, not {method!r}")
+        return ContactPlanner(scene)
+    return GcsPlanner(scene, method=method)
+
+
 def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=None):
-    """The scene's GCS expert: the planner that serves it (`planning.make_planner`), with the speeds and the
+    """The scene's GCS expert: the planner that serves it (`make_planner`), with the speeds and the
     replan rule for its slider; in pixels, with its agent steered, for a scene with a frame (gym-pusht).
     `planner` shares one planner between experts (it is costly to build)."""
     config = config or ExpertConfig()

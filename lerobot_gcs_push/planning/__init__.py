@@ -2,7 +2,7 @@
 rounding walk over relaxed flows (`flow_walk`); the one expert that runs any plan closed loop (`expert`).
 The planners behind it: `planner/` (the box, over its modes) and `contact/` (a slider that turns)."""
 
-from lerobot_gcs_push.planning.interface import Planner, PlanningError, make_planner
+from lerobot_gcs_push.planning.interface import Planner, PlanningError
 from lerobot_gcs_push.planning.plan import (
     APPROACH,
     DWELL,
@@ -27,5 +27,4 @@ __all__ = [
     "Schedule",
     "SegmentKind",
     "Speeds",
-    "make_planner",
 ]

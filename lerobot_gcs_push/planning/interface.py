@@ -1,5 +1,5 @@
 """What every planner is to the rest of the package: a query in (the slider, the finger, optionally a goal),
-one `Plan` out, one error when there is none; and which planner serves a scene."""
+one `Plan` out, one error when there is none. Which planner serves a scene is `expert.make_planner`'s choice."""
 
 from __future__ import annotations
 
@@ -36,17 +36,3 @@ class Planner(Protocol):
 
     def warm_up(self) -> float:
         """Build what every plan needs now, so no query pays for it; the seconds it took."""
-
-
-def make_planner(scene: Scene, method: str = "relaxation") -> Planner:
-    """The scene decides: a slider that turns plans through contact (`contact.ContactPlanner`, relaxation
-    only), the box over its modes (`planner.GcsPlanner`, relaxation or MICP)."""
-    if scene.rotates:
-        from lerobot_gcs_push.contact import ContactPlanner
-
-        if method != "relaxation":
-            raise ValueError(f"a rotating slider plans with the relaxation only, not {method!r}")
-        return ContactPlanner(scene)
-    from lerobot_gcs_push.planner import GcsPlanner
-
-    return GcsPlanner(scene, method=method)
