@@ -8,7 +8,7 @@ from pathlib import Path
 
 
 def run(episodes: int = 100, workers: int = 2) -> dict:
-    from lerobot_gcs_push.dataset import GenerateConfig, generate
+    from lerobot_gcs_push.generate import GenerateConfig, generate
 
     with tempfile.TemporaryDirectory() as tmp:
         report = generate(

@@ -14,7 +14,8 @@ from pathlib import Path
 
 
 def run(episodes: int = 100, workers: int = 2, shard_size: int = 10, copies: int = 10) -> dict:
-    from lerobot_gcs_push.dataset import GenerateConfig, _batched_image_embedding, generate
+    from lerobot_gcs_push.generate import GenerateConfig, generate
+    from lerobot_gcs_push.generate.frames import _batched_image_embedding
 
     out: dict[str, float] = {"episodes": float(episodes), "workers": float(workers), "shard_size": float(shard_size)}
     reports = {}

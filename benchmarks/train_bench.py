@@ -168,7 +168,7 @@ def bench_preset(
 
 
 def _tiny_dataset(home: Path, episodes: int) -> Path:
-    from lerobot_gcs_push.dataset import GenerateConfig, generate
+    from lerobot_gcs_push.generate import GenerateConfig, generate
 
     root = home / REPO_ID
     generate(GenerateConfig(episodes=episodes, repo_id=REPO_ID, root=str(root), workers=1, progress=False))

@@ -15,8 +15,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 from lerobot_gcs_push.active import CollectConfig
-from lerobot_gcs_push.dataset import GenerateConfig
 from lerobot_gcs_push.evaluation import EvaluateConfig
+from lerobot_gcs_push.generate import GenerateConfig
 from lerobot_gcs_push.improve import ImproveConfig
 from lerobot_gcs_push.registration import ENV_ID
 from lerobot_gcs_push.scene import is_finite_number, load_initial_conditions
@@ -163,7 +163,7 @@ def _plain(value):
 
 
 def run_generate(cfg: GenerateConfig) -> None:
-    from lerobot_gcs_push.dataset import generate
+    from lerobot_gcs_push.generate import generate
 
     report = generate(cfg)
     if report.already_finished:
@@ -216,8 +216,8 @@ def run_demo(cfg: DemoConfig) -> None:
     a few initial conditions with side-by-side videos."""
     from pathlib import Path
 
-    from lerobot_gcs_push.dataset import dataset_root
     from lerobot_gcs_push.evaluation import changed_weights, evaluate, variant_label, video_path
+    from lerobot_gcs_push.generate import dataset_root
     from lerobot_gcs_push.videos import side_by_side
 
     gen = GenerateConfig(

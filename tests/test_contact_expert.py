@@ -160,7 +160,7 @@ def test_demonstrations_of_the_rotating_box_replay_in_the_sim_and_end_at_the_goa
     shape's own clipping."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from lerobot_gcs_push.dataset import GenerateConfig, generate, read_episode_metadata
+    from lerobot_gcs_push.generate import GenerateConfig, generate, read_episode_metadata
 
     root = tmp_path / "ds"
     cfg = GenerateConfig(env_id=SE2_ENV_ID, episodes=2, repo_id="local/se2_demos", root=str(root), workers=1,

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from conftest import gcs_push, kill_when
 
-from lerobot_gcs_push.dataset import FEATURE_KEYS, GenerateConfig, generate, read_episode_metadata
+from lerobot_gcs_push.generate import FEATURE_KEYS, GenerateConfig, generate, read_episode_metadata
 from lerobot_gcs_push.scene import Scene
 
 N = 3
@@ -161,7 +161,7 @@ def test_a_merge_holds_each_datasets_episodes_in_turn(reference):
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from lerobot_gcs_push.dataset import merge_datasets
+    from lerobot_gcs_push.generate import merge_datasets
 
     def table(root: Path):
         return pa.concat_tables([pq.read_table(f) for f in sorted((root / "data").rglob("*.parquet"))])

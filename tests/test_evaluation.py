@@ -16,11 +16,11 @@ from conftest import gcs_push, kill_when
 from lerobot_gcs_push.evaluation import (
     TIMING_FIELDS,
     EvaluateConfig,
-    _regret_summary,
     changed_weights,
     evaluate,
     read_runs,
 )
+from lerobot_gcs_push.evaluation.tables import _regret_summary
 
 REQUIRED = (
     "policy",

@@ -246,7 +246,7 @@ def test_the_stage_runner_resumes_after_kill_9_inside_each_stage(tmp_path, monke
 
         return stage
 
-    real_export = imp.export_policy
+    real_export = imp.improver.export_policy
 
     def export_policy(src, dst, **kw):
         enter("export")
@@ -260,7 +260,7 @@ def test_the_stage_runner_resumes_after_kill_9_inside_each_stage(tmp_path, monke
     monkeypatch.setattr(imp.Improver, "run_merge", plain("merge"))
     monkeypatch.setattr(imp.Improver, "run_finetune", run_finetune)
     monkeypatch.setattr(imp.Improver, "run_validation", run_validation)
-    monkeypatch.setattr(imp, "export_policy", export_policy)  # run_decision is the real one
+    monkeypatch.setattr(imp.improver, "export_policy", export_policy)  # run_decision is the real one
 
     def improve(**kw) -> int:
         cfg = imp.ImproveConfig(

@@ -32,7 +32,7 @@ def lerobot_home(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def tiny_dataset(lerobot_home) -> Path:
-    from lerobot_gcs_push.dataset import GenerateConfig, generate
+    from lerobot_gcs_push.generate import GenerateConfig, generate
 
     root = lerobot_home / REPO_ID
     generate(GenerateConfig(episodes=2, repo_id=REPO_ID, root=str(root), workers=1, progress=False))
@@ -311,7 +311,7 @@ TEE_REPO_ID = "local/gcs_push_t"
 @pytest.fixture(scope="session")
 def tee_dataset(lerobot_home, tmp_path_factory) -> Path:
     """One closed-loop demonstration of the T, from the first start of its uniform set (the README's GIF)."""
-    from lerobot_gcs_push.dataset import GenerateConfig, generate
+    from lerobot_gcs_push.generate import GenerateConfig, generate
     from lerobot_gcs_push.registration import SCENES, TEE_ENV_ID
     from lerobot_gcs_push.scene import sample_initial_conditions
 

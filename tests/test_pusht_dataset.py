@@ -87,7 +87,7 @@ def test_frames_hold_what_each_step_returned():
 # --- slow: one generate, read back and replayed --------------------------------------------------------
 @pytest.fixture(scope="module")
 def pusht_dataset(tmp_path_factory):
-    from lerobot_gcs_push.dataset import GenerateConfig, generate
+    from lerobot_gcs_push.generate import GenerateConfig, generate
 
     home = tmp_path_factory.mktemp("lerobot_home")
     starts = home / "starts.json"
@@ -126,7 +126,7 @@ def test_generate_writes_lerobot_pushts_features(pusht_dataset):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
     from lerobot.utils.constants import DEFAULT_FEATURES
 
-    from lerobot_gcs_push.dataset import read_episode_metadata
+    from lerobot_gcs_push.generate import read_episode_metadata
 
     _, root, report = pusht_dataset
     ds = LeRobotDataset(REPO_ID, root=root, video_backend="pyav")
@@ -151,7 +151,7 @@ def test_generated_episodes_replay_in_a_fresh_gym_pusht(pusht_dataset):
     import gymnasium as gym
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from lerobot_gcs_push.dataset import read_episode_metadata
+    from lerobot_gcs_push.generate import read_episode_metadata
     from lerobot_gcs_push.pusht_frame import reset_to_state
 
     _, root, _ = pusht_dataset
@@ -192,7 +192,7 @@ def test_its_replay_list_rebuilds_it_value_for_value(pusht_dataset):
     every video frame as the expert's run wrote them (gym-pusht runs the stored float32 actions)."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from lerobot_gcs_push.dataset import GenerateConfig, generate
+    from lerobot_gcs_push.generate import GenerateConfig, generate
     from lerobot_gcs_push.replay import REPLAY_META
 
     home, root, report = pusht_dataset

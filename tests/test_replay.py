@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lerobot_gcs_push.dataset import GenerateConfig, generate, read_episode_metadata
+from lerobot_gcs_push.generate import GenerateConfig, generate, read_episode_metadata
 from lerobot_gcs_push.replay import REPLAY_META, ReplayActions, entry_line
 
 

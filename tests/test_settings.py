@@ -27,7 +27,7 @@ def test_a_field_newer_than_the_file():
 def test_generate_refuses_to_resume_a_work_folder_with_other_settings(tmp_path):
     import pytest
 
-    from lerobot_gcs_push.dataset import WorkDir
+    from lerobot_gcs_push.generate import WorkDir
 
     work = WorkDir(tmp_path / "run.work")
     work.open({"env_id": "GcsPushBox-v0", "seed": 0}, resume=False)

@@ -51,7 +51,7 @@ def pool_list(n: int) -> Path:
 
 
 def dataset(n: int) -> None:
-    from lerobot_gcs_push.dataset import lerobot_home
+    from lerobot_gcs_push.generate import lerobot_home
 
     if (lerobot_home() / repo_id(n) / "meta" / "info.json").is_file():
         print(f"{repo_id(n)} is there")

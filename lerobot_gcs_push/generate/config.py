@@ -1,0 +1,160 @@
+"""What `gcs-push generate` makes: its settings (`GenerateConfig`) and where the dataset lies."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from lerobot_gcs_push.generate.hub import check_online
+from lerobot_gcs_push.registration import ENV_ID, SCENES
+from lerobot_gcs_push.replay import ReplayActions
+from lerobot_gcs_push.scene import (
+    Disturbances,
+    Scene,
+    check_sampler,
+    check_seed,
+    load_initial_conditions,
+)
+
+EPISODES_META = "meta/gcs_push_episodes.jsonl"
+SETTINGS_META = "meta/gcs_push_settings.json"  # the settings a finished dataset was made with (see _finished)
+# Settings a dataset or work folder made before the field existed holds implicitly.
+_IMPLICIT_SETTINGS = {"env_id": ENV_ID}
+
+
+@dataclass
+class GenerateConfig:
+    # The registered env to record in: GcsPushBox-v0 (the box that cannot turn), GcsPushBoxSE2-v0 or
+    # GcsPushT-v0 (rotating sliders, whose GCS expert plans through contact: --method=relaxation only), or
+    # gym_pusht/PushT-v0 (gym-pusht's own env, written in lerobot/pusht's format: see pusht_dataset.py).
+    env_id: str = ENV_ID
+    # Successful demonstrations to write (failed rollouts are left out). Default: 100 from the sampler,
+    # or as many as --initial_conditions has entries.
+    episodes: int | None = None
+    # LeRobot dataset id, "owner/name".
+    repo_id: str = "local/gcs_push_box"
+    # Dataset folder; default: $HF_LEROBOT_HOME/<repo_id>, where LeRobot looks first.
+    root: str | None = None
+    # The i-th initial condition and episode depend only on (seed, i).
+    seed: int = 0
+    # Worker processes (or Ray actors); the dataset does not depend on it.
+    workers: int = 2
+    # open-loop (plan once, the paper's), closed-loop (replans after disturbances) or replay (runs the
+    # "actions" of each --initial_conditions entry: a dataset's meta/gcs_push_replay.json rebuilds it, see
+    # replay.py). Default: replay for a list whose entries all carry actions; else open-loop for the box
+    # that cannot turn, closed-loop for a rotating slider, which strays from any plan pushed open-loop.
+    expert: str | None = None
+    # relaxation (convex relaxation + rounding) or micp (exact, SCIP).
+    method: str = "relaxation"
+    # Initial conditions: sobol (space-filling), uniform (the paper's) or hard (see scene.py).
+    sampler: str = "sobol"
+    # A JSON list of {"box", "finger"} (and "heading" for a rotating slider) to use instead of the sampler
+    # (e.g. the policy states that `gcs-push collect` picked); its entries are tried once each, in order,
+    # until `episodes` succeed, and failures are left out.
+    initial_conditions: str | None = None
+    # Stop once this many frames are written (an equal-cost control); episodes is then an upper bound.
+    frames: int | None = None
+    # Record under the paper's random pushes on the box (use with the closed-loop expert).
+    disturbances: bool = False
+    # Env steps (frames) per simulated second.
+    fps: int = Scene.fps
+    # Observation image side, pixels.
+    image_size: int = 96
+    # Simulated seconds before a rollout counts as failed. Default: the env's (500 s, the paper's; 30 s, that
+    # is 300 steps, for gym-pusht, so its episodes succeed within gym-pusht's own limit).
+    max_sim_time_s: float | None = None
+    # Replace an existing dataset (and an interrupted run's work).
+    overwrite: bool = False
+    # Continue an interrupted run, keeping its finished episodes and shards.
+    resume: bool = False
+    # Upload with LeRobot's push_to_hub (needs the network and a token).
+    push_to_hub: bool = False
+    # Show a progress bar.
+    progress: bool = True
+    # Give up after episodes * factor initial conditions.
+    max_attempts_factor: float = 2.0
+    # process (worker processes here) or ray (Ray actors; see lerobot_gcs_push.workers).
+    backend: str = "process"
+    # With backend ray: "auto" or "HOST:PORT" joins a running cluster; none starts Ray here.
+    ray_address: str | None = None
+    # Initial conditions per job, at most; each job writes one shard, merged at the end.
+    shard_size: int = 10
+
+    def __post_init__(self) -> None:
+        from lerobot_gcs_push.expert import EXPERTS
+        from lerobot_gcs_push.rollout import check_env_id
+
+        check_env_id(self.env_id)
+        scene = SCENES[self.env_id]
+        ics = load_initial_conditions(self.initial_conditions, scene) if self.initial_conditions else None
+        if self.episodes is None:
+            self.episodes = len(ics) if ics else 100
+        if self.episodes < 1:
+            raise ValueError(f"episodes must be >= 1, got {self.episodes}")
+        if self.workers < 1:
+            raise ValueError(f"workers must be >= 1, got {self.workers}")
+        if self.overwrite and self.resume:
+            raise ValueError("choose one of overwrite and resume, not both")
+        if "/" not in self.repo_id:
+            raise ValueError(f"repo_id must look like 'owner/name', got {self.repo_id!r}")
+        rotates = SCENES[self.env_id].rotates
+        replayable = bool(ics) and all("actions" in ic for ic in ics)
+        if self.expert is None:
+            self.expert = "replay" if replayable else "closed-loop" if rotates else "open-loop"
+        if self.expert not in (*EXPERTS, "replay"):
+            raise ValueError(f"unknown expert {self.expert!r}: choose one of {(*EXPERTS, 'replay')}")
+        if self.expert == "replay":
+            if not ics:
+                raise ValueError("--expert=replay runs the actions of an --initial_conditions list: pass one")
+            missing = next((i for i, ic in enumerate(ics) if "actions" not in ic), None)
+            if missing is not None:
+                raise ValueError(f'--expert=replay: initial condition {missing} has no "actions"')
+            for i, ic in enumerate(ics):  # refused here, not by a worker midway through the run
+                try:
+                    ReplayActions().load(ic["actions"])
+                except (ValueError, TypeError) as err:
+                    raise ValueError(f"--expert=replay: initial condition {i}: {err}") from None
+            if self.disturbances:
+                raise ValueError("--expert=replay repeats undisturbed episodes: drop --disturbances")
+        check_sampler(self.sampler)
+        from lerobot_gcs_push.planner import check_method
+
+        check_method(self.method)
+        if rotates and self.method != "relaxation":
+            raise ValueError(f"{self.env_id} plans with the relaxation only: drop --method={self.method}")
+        if self.max_sim_time_s is None:
+            self.max_sim_time_s = scene.timeout_s
+        if self.image_size < 1:
+            raise ValueError(f"image_size must be >= 1, got {self.image_size}")
+        if not 0 < self.max_sim_time_s < float("inf"):  # inf would roll a failing start out forever
+            raise ValueError(f"max_sim_time_s must be positive and finite, got {self.max_sim_time_s}")
+        check_seed(self.seed)
+        per_s = round(1 / Disturbances.tick_s)
+        if self.fps <= 0 or per_s % self.fps:  # an env step is a whole number of disturbance ticks
+            raise ValueError(f"fps must divide {per_s}, got {self.fps}")
+        if ics:  # refused before any worker starts, each entry named
+            for i, ic in enumerate(ics):
+                scene.validate_start(ic, f"initial condition {i}")
+        if self.frames is not None and self.frames < 1:
+            raise ValueError(f"frames must be >= 1, got {self.frames}")
+        if self.shard_size < 1:
+            raise ValueError(f"shard_size must be >= 1, got {self.shard_size}")
+        if self.push_to_hub:  # refused now, not after the whole generation
+            check_online()
+        from lerobot_gcs_push.workers import check_backend
+
+        check_backend(self.backend, self.ray_address)
+
+
+def lerobot_home() -> Path:
+    env = os.environ.get("HF_LEROBOT_HOME")
+    if env:
+        return Path(env).expanduser()
+    from lerobot.utils.constants import HF_LEROBOT_HOME
+
+    return Path(HF_LEROBOT_HOME)
+
+
+def dataset_root(cfg: GenerateConfig) -> Path:
+    return Path(cfg.root).expanduser() if cfg.root else lerobot_home() / cfg.repo_id
