@@ -31,10 +31,11 @@ from lerobot_gcs_push.planner import plannable
 from lerobot_gcs_push.registration import ENV_ID, SCENES
 from lerobot_gcs_push.scene import Scene
 from lerobot_gcs_push.stalls import StallRule, stall_branch_states
+from lerobot_gcs_push.workers import FanOut
 
 
 @dataclass
-class CollectConfig:
+class CollectConfig(FanOut):
     # `gcs-push evaluate` output folders of the policy to correct, e.g. '[outputs/active/r1/rollouts]'.
     rollouts: list[str] = field(default_factory=list)
     # The labelled states' LeRobot dataset id.
@@ -58,16 +59,10 @@ class CollectConfig:
     stall: StallRule = field(default_factory=StallRule)
     # Seeds the choice of the other chunk starts and the expert's episodes.
     seed: int = 0
-    # Worker processes (or Ray actors) for the expert's rollouts.
-    workers: int = 2
     # Replace an existing dataset.
     overwrite: bool = False
     # Continue an interrupted collection.
     resume: bool = False
-    # process or ray: as for `gcs-push generate`.
-    backend: str = "process"
-    # With backend ray: "auto" or "HOST:PORT" joins a running cluster; none starts Ray here.
-    ray_address: str | None = None
 
     def __post_init__(self) -> None:
         if not self.rollouts:
@@ -79,6 +74,7 @@ class CollectConfig:
             raise ValueError(f"keep_fraction must be in [0, 1], got {self.keep_fraction}")
         if self.max_per_run < 1:
             raise ValueError(f"max_per_run must be >= 1, got {self.max_per_run}")
+        self.check_fan_out()
         from lerobot_gcs_push.scene import check_seed
 
         check_seed(self.seed)
@@ -173,12 +169,10 @@ def collect(cfg: CollectConfig) -> tuple[GenerateReport, list[dict]]:
         repo_id=cfg.repo_id,
         root=cfg.root,
         seed=cfg.seed,
-        workers=cfg.workers,
         expert="closed-loop",
         overwrite=cfg.overwrite,
         resume=cfg.resume,
-        backend=cfg.backend,
-        ray_address=cfg.ray_address,
+        **cfg.fan_out(),
     )
     root = dataset_root(gen)
     # The list sits beside the dataset (kept for provenance), written whole before generation reads it.

@@ -21,6 +21,7 @@ from lerobot_gcs_push.improve import ImproveConfig
 from lerobot_gcs_push.registration import ENV_ID
 from lerobot_gcs_push.scene import is_finite_number, load_initial_conditions
 from lerobot_gcs_push.shipped import shipped_path
+from lerobot_gcs_push.workers import FanOut
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")  # nothing here may reach the network unless asked to
 
@@ -65,7 +66,7 @@ class PlanConfig:
 
 
 @dataclass
-class DemoConfig:
+class DemoConfig(FanOut):
     # The paper's whole protocol: 100 demonstrations and the experts on 20 initial conditions x 5 runs.
     # Off, a quick look at the whole pipeline (a few minutes on 2 cores, install included): 20 and 5 x 1.
     protocol: bool = False
@@ -74,8 +75,6 @@ class DemoConfig:
     # The dataset's LeRobot id (written to $HF_LEROBOT_HOME/<repo_id>); default local/gcs_push_box (what
     # the training preset reads) with the protocol, local/gcs_push_box_quick without.
     repo_id: str | None = None
-    # Worker processes for generation and evaluation.
-    workers: int = 2
     # The experts' evaluation: initial conditions x runs, with and without disturbances; default by protocol.
     num_initial_conditions: int | None = None
     # Runs per initial condition; default by protocol.
@@ -101,8 +100,9 @@ class DemoConfig:
         ):
             if getattr(self, name) is None:
                 setattr(self, name, value)
-        if min(self.episodes, self.workers, self.num_initial_conditions, self.runs) < 1:
-            raise ValueError("episodes, workers, num_initial_conditions and runs must be >= 1")
+        if min(self.episodes, self.num_initial_conditions, self.runs) < 1:
+            raise ValueError("episodes, num_initial_conditions and runs must be >= 1")
+        self.check_fan_out()
         if self.policy:
             check_policy(self.policy)
             if self.policy_ics < 1:
@@ -223,8 +223,8 @@ def run_demo(cfg: DemoConfig) -> None:
     gen = GenerateConfig(
         episodes=cfg.episodes,
         repo_id=cfg.repo_id,
-        workers=cfg.workers,
         resume=not cfg.overwrite,
+        **cfg.fan_out(),
         overwrite=cfg.overwrite,
     )
     root = dataset_root(gen)
@@ -242,8 +242,8 @@ def run_demo(cfg: DemoConfig) -> None:
             runs=cfg.runs,
             disturbances=True,
             output_dir=str(experts_dir),
-            workers=cfg.workers,
             dataset=cfg.repo_id,
+            **cfg.fan_out(),
             overwrite=cfg.overwrite,
         )
     )
@@ -255,8 +255,8 @@ def run_demo(cfg: DemoConfig) -> None:
             num_initial_conditions=cfg.policy_ics,
             runs=1,
             output_dir=str(policy_dir),
-            workers=cfg.workers,
             timeout_s=60.0,
+            **cfg.fan_out(),
             device=cfg.device,
             videos=cfg.policy_ics,
             overwrite=cfg.overwrite,

@@ -26,10 +26,34 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
 from typing import Any
 
 BACKENDS = ("process", "ray")
 RETRIES = 3
+
+
+@dataclass
+class FanOut:
+    """How a command's jobs fan out: the one definition of these settings, which `generate`, `evaluate`,
+    `collect`, `demo` and `improve` take as theirs (`--workers`, `--backend`, `--ray_address`)."""
+
+    # Worker processes (or Ray actors); the results do not depend on it (every job is seeded by itself).
+    workers: int = 2
+    # process (worker processes here) or ray (Ray actors; see lerobot_gcs_push.workers).
+    backend: str = "process"
+    # With backend ray: "auto" or "HOST:PORT" joins a running cluster; none starts Ray here.
+    ray_address: str | None = None
+
+    def check_fan_out(self) -> None:
+        """For the configs' validation: fail before any work, with the fix in the message."""
+        if self.workers < 1:
+            raise ValueError(f"workers must be >= 1, got {self.workers}")
+        check_backend(self.backend, self.ray_address)
+
+    def fan_out(self) -> dict:
+        """The settings as keywords, for the command this one runs."""
+        return {"workers": self.workers, "backend": self.backend, "ray_address": self.ray_address}
 
 
 def check_backend(backend: str, address: str | None) -> None:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from lerobot_gcs_push.registration import ENV_ID, SCENES, sample_starts
 from lerobot_gcs_push.scene import check_sampler, check_seed, load_initial_conditions
+from lerobot_gcs_push.workers import FanOut
 
 GCS_POLICIES = ("gcs-open-loop", "gcs-closed-loop")
 # The named evaluation sets: the paper's protocol set (uniform, seed 1000) and the hard set (seed 3000).
@@ -35,7 +36,7 @@ def check_device(device: str) -> str:
 
 
 @dataclass
-class EvaluateConfig:
+class EvaluateConfig(FanOut):
     # The registered env: GcsPushBox-v0 (the box that cannot turn), GcsPushBoxSE2-v0 or GcsPushT-v0
     # (rotating sliders, which succeed by coverage; their GCS experts plan through contact; no regret yet).
     env_id: str = ENV_ID
@@ -69,7 +70,8 @@ class EvaluateConfig:
     output_dir: str = "outputs/eval"
     # Torch device of learned policies: cpu, cuda, cuda:N or mps.
     device: str = "cpu"
-    # Worker processes (or Ray actors).
+    # FanOut's, but one by default: runs in this process, with no policy loaded per worker (a learned
+    # policy takes seconds to load; a short evaluation is over before a pool would be).
     workers: int = 1
     # Simulated seconds before a run counts as failed. Default: the env's own (the paper's 500 for the Drake
     # envs, gym-pusht's 30, its 300 steps).
@@ -83,10 +85,6 @@ class EvaluateConfig:
     videos: int = 2
     # Delete an earlier evaluation in output_dir first.
     overwrite: bool = False
-    # process (worker processes here) or ray (Ray actors; see lerobot_gcs_push.workers).
-    backend: str = "process"
-    # With backend ray: "auto" or "HOST:PORT" joins a running cluster; none starts Ray here.
-    ray_address: str | None = None
 
     def __post_init__(self) -> None:
         from lerobot_gcs_push.expert import check_cost_to_go
@@ -95,8 +93,9 @@ class EvaluateConfig:
         check_env_id(self.env_id)
         if not self.policies:
             raise ValueError("give at least one policy")
-        if self.runs < 1 or self.num_initial_conditions < 1 or self.workers < 1:
-            raise ValueError("runs, num_initial_conditions and workers must be >= 1")
+        if self.runs < 1 or self.num_initial_conditions < 1:
+            raise ValueError("runs and num_initial_conditions must be >= 1")
+        self.check_fan_out()
         if self.timeout_s is None:
             self.timeout_s = SCENES[self.env_id].timeout_s
         if not 0 < self.timeout_s < float("inf"):
@@ -119,9 +118,6 @@ class EvaluateConfig:
                 raise ValueError(
                     f"dataset {self.dataset!r} is neither a folder nor in the LeRobot cache ({lerobot_home()})"
                 )
-        from lerobot_gcs_push.workers import check_backend
-
-        check_backend(self.backend, self.ray_address)
 
 
 def variants(cfg: EvaluateConfig) -> list[tuple[str, bool]]:

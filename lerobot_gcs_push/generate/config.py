@@ -16,6 +16,7 @@ from lerobot_gcs_push.scene import (
     check_seed,
     load_initial_conditions,
 )
+from lerobot_gcs_push.workers import FanOut
 
 EPISODES_META = "meta/gcs_push_episodes.jsonl"
 SETTINGS_META = "meta/gcs_push_settings.json"  # the settings a finished dataset was made with (see _finished)
@@ -24,7 +25,7 @@ _IMPLICIT_SETTINGS = {"env_id": ENV_ID}
 
 
 @dataclass
-class GenerateConfig:
+class GenerateConfig(FanOut):
     # The registered env to record in: GcsPushBox-v0 (the box that cannot turn), GcsPushBoxSE2-v0 or
     # GcsPushT-v0 (rotating sliders, whose GCS expert plans through contact: --method=relaxation only), or
     # gym_pusht/PushT-v0 (gym-pusht's own env, written in lerobot/pusht's format: see pusht_dataset.py).
@@ -38,8 +39,6 @@ class GenerateConfig:
     root: str | None = None
     # The i-th initial condition and episode depend only on (seed, i).
     seed: int = 0
-    # Worker processes (or Ray actors); the dataset does not depend on it.
-    workers: int = 2
     # open-loop (plan once, the paper's), closed-loop (replans after disturbances) or replay (runs the
     # "actions" of each --initial_conditions entry: a dataset's meta/gcs_push_replay.json rebuilds it, see
     # replay.py). Default: replay for a list whose entries all carry actions; else open-loop for the box
@@ -74,10 +73,6 @@ class GenerateConfig:
     progress: bool = True
     # Give up after episodes * factor initial conditions.
     max_attempts_factor: float = 2.0
-    # process (worker processes here) or ray (Ray actors; see lerobot_gcs_push.workers).
-    backend: str = "process"
-    # With backend ray: "auto" or "HOST:PORT" joins a running cluster; none starts Ray here.
-    ray_address: str | None = None
     # Initial conditions per job, at most; each job writes one shard, merged at the end.
     shard_size: int = 10
 
@@ -92,8 +87,7 @@ class GenerateConfig:
             self.episodes = len(ics) if ics else 100
         if self.episodes < 1:
             raise ValueError(f"episodes must be >= 1, got {self.episodes}")
-        if self.workers < 1:
-            raise ValueError(f"workers must be >= 1, got {self.workers}")
+        self.check_fan_out()
         if self.overwrite and self.resume:
             raise ValueError("choose one of overwrite and resume, not both")
         if "/" not in self.repo_id:
@@ -142,9 +136,6 @@ class GenerateConfig:
             raise ValueError(f"shard_size must be >= 1, got {self.shard_size}")
         if self.push_to_hub:  # refused now, not after the whole generation
             check_online()
-        from lerobot_gcs_push.workers import check_backend
-
-        check_backend(self.backend, self.ray_address)
 
 
 def lerobot_home() -> Path:

@@ -11,6 +11,7 @@ from pathlib import Path
 from lerobot_gcs_push.checkpoints import is_pretrained_dir
 from lerobot_gcs_push.registration import ENV_ID
 from lerobot_gcs_push.shipped import shipped_path
+from lerobot_gcs_push.workers import FanOut
 
 STAGES = ("rollouts", "collect", "merge", "finetune", "validation", "decision")
 
@@ -81,7 +82,7 @@ class StopConfig:
 
 
 @dataclass
-class ImproveConfig:
+class ImproveConfig(FanOut):
     # The policy folder to improve in place: a LeRobot pretrained_model directory, or a path where none is
     # yet (then from nothing: base demonstrations and a first training). Winners are written here.
     policy: str = "outputs/improve/policy"
@@ -108,7 +109,6 @@ class ImproveConfig:
     # rollouts 4000-4091, validation and unseen sets 5001-5027); another run on the same policy needs
     # another seed for its sets to be fresh.
     seed: int = 6000
-    workers: int = 2
     # Torch device of training and rollouts: cpu, cuda, cuda:N or mps.
     device: str = "cpu"
     # Training steps between checkpoints: what a kill can cost, and how often the resumable copy is made.
@@ -153,6 +153,7 @@ class ImproveConfig:
         if Path(self.policy).exists() and not is_pretrained_dir(self.policy):
             raise ValueError(f"{self.policy} exists but is not a LeRobot pretrained_model directory")
         check_device(self.device)
+        self.check_fan_out()
         counts = {
             "round.hard": self.round.hard,
             "round.uniform": self.round.uniform,
@@ -168,7 +169,6 @@ class ImproveConfig:
             "round.steps": self.round.steps,
             "validation.runs": self.validation.runs,
             "validation.margin": self.validation.margin,
-            "workers": self.workers,
             "save_freq": self.save_freq,
             "round.timeout_s": self.round.timeout_s if self.round.timeout_s is not None else 1.0,
             "round.lr": self.round.lr,
@@ -208,5 +208,5 @@ _BEFORE_FIELDS = {"hard_sampler": "hard"}
 
 
 def _settings(cfg: ImproveConfig) -> dict:
-    skip = ("workers", "device", "stop", "stop_after", "state_dir", "work_dir", "save_freq")
+    skip = ("workers", "backend", "ray_address", "device", "stop", "stop_after", "state_dir", "work_dir", "save_freq")
     return {k: v for k, v in asdict(cfg).items() if k not in skip}

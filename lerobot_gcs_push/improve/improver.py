@@ -68,7 +68,7 @@ class Improver:
                 env_id=self.cfg.env_id,
                 seed=b.seed,
                 sampler=b.sampler,
-                workers=self.cfg.workers,
+                **self.cfg.fan_out(),
                 resume=True,
             )
         )
@@ -140,7 +140,7 @@ class Improver:
                         runs=1,
                         disturbances=r.disturbances,
                         timeout_s=r.timeout_s,
-                        workers=self.cfg.workers,
+                        **self.cfg.fan_out(),
                         videos=0,
                         device=self.cfg.device,
                         output_dir=str(out),
@@ -199,7 +199,7 @@ class Improver:
             repo_id=self.repo(f"r{k}"),
             large_regret_m=self.cfg.round.large_regret_m,
             seed=self.seed(k, 2),
-            workers=self.cfg.workers,
+            **self.cfg.fan_out(),
             resume=True,
         )
         collect(cfg)
@@ -220,7 +220,7 @@ class Improver:
                 env_id=self.cfg.env_id,
                 seed=seed,
                 expert="closed-loop",
-                workers=self.cfg.workers,
+                **self.cfg.fan_out(),
                 resume=True,
             )
         )
@@ -277,7 +277,7 @@ class Improver:
                     num_initial_conditions=n,
                     runs=v.runs,
                     timeout_s=self.cfg.round.timeout_s,
-                    workers=self.cfg.workers,
+                    **self.cfg.fan_out(),
                     videos=0,
                     device=self.cfg.device,
                     output_dir=str(out),
