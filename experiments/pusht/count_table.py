@@ -3,6 +3,7 @@ demonstrations, demonstrations only, equal training steps, in stages that surviv
 
     python experiments/pusht/count_table.py dataset 206   # rebuild local/gcs_pusht_206 from the replay lists
     python experiments/pusht/count_table.py train 206     # train (or resume) to STEPS; kill it any time
+    python experiments/pusht/count_table.py validate 206  # the two fixed validation runs -> base_206/validation.json
 
 Every choice here was fixed on 2026-12-05 before any policy trained: the pool is the replay lists in
 `demos/` in seed order (4800, 4801, 4802, 4803), a count takes its first N episodes; the preset is
@@ -79,7 +80,67 @@ def train(n: int) -> Path:
     return final
 
 
+# The validation runs, fixed before any base trained (README.md): LeRobot's own evaluator on 50 episodes of
+# seed 4900, and `gcs-push evaluate` beside the expert on 50 of gym-pusht's resets of seed 4901.
+LEROBOT_SEED, GCS_SEED, EPISODES = 4900, 4901, 50
+
+
+def validate(n: int) -> dict:
+    """Both validation runs of base `n`'s weights at STEPS (its fp16 export, what would be committed and
+    shipped), each skipped when its output is there; their figures in base_<n>/validation.json."""
+    import numpy as np
+
+    base = HERE / f"base_{n}" / "partial"
+    step = json.loads((base / "step.json").read_text())["step"]
+    if step != STEPS:
+        raise SystemExit(f"{base} holds step {step}, not {STEPS}: train it first (count_table.py train {n})")
+    out = REPO / "outputs" / "pusht" / f"validate_{n}"
+    bin_dir = Path(sys.executable).parent
+    lerobot_cmd = [
+        str(bin_dir / "lerobot-eval"), f"--policy.path={base}", "--env.type=pusht", f"--eval.n_episodes={EPISODES}",
+        "--eval.batch_size=1", f"--seed={LEROBOT_SEED}", "--env.observation_height=96", "--env.observation_width=96",
+        "--eval.use_async_envs=false", "--policy.device=cpu", f"--output_dir={out / 'lerobot_eval'}",
+    ]  # fmt: skip
+    gcs_cmd = [
+        str(bin_dir / "gcs-push"), "evaluate", "--env_id=gym_pusht/PushT-v0", f"--policies=[{base},gcs-closed-loop]",
+        f"--num_initial_conditions={EPISODES}", "--runs=1", f"--seed={GCS_SEED}", "--workers=2", "--videos=1",
+        f"--output_dir={out / 'gcs_evaluate'}",
+    ]  # fmt: skip
+    env = {**__import__("os").environ, "HF_HUB_OFFLINE": "1", "OMP_WAIT_POLICY": "PASSIVE"}
+    if not (out / "lerobot_eval" / "eval_info.json").is_file():
+        subprocess.run(lerobot_cmd, check=True, env=env)
+    subprocess.run(gcs_cmd, check=True, env=env)  # resumes: finished runs are kept
+    overall = json.loads((out / "lerobot_eval" / "eval_info.json").read_text())["overall"]
+    runs = [json.loads(line) for line in (out / "gcs_evaluate" / "runs.jsonl").read_text().splitlines()]
+    mine = {r["initial_condition_index"]: r for r in runs if r["policy"] != "gcs-closed-loop"}
+    expert = {r["initial_condition_index"]: r for r in runs if r["policy"] == "gcs-closed-loop"}
+    both = [i for i in mine if mine[i]["success"] and expert[i]["success"]]
+    steps = lambda rs: float(np.mean([round(r["sim_time_s"] * 10) for r in rs])) if rs else None  # noqa: E731
+    result = {
+        "base": n,
+        "step": step,
+        "lerobot_eval": {k: overall[k] for k in ("pc_success", "avg_max_reward", "avg_sum_reward") if k in overall}
+        | {"n_episodes": EPISODES, "seed": LEROBOT_SEED},
+        "gcs_push_evaluate": {
+            "seed": GCS_SEED,
+            "policy_success": sum(r["success"] for r in mine.values()) / len(mine),
+            "expert_success": sum(r["success"] for r in expert.values()) / len(expert),
+            # Steps to success on the starts both succeeded on: the policy's mean over the expert's.
+            "both_succeeded": len(both),
+            "policy_steps_mean": steps([mine[i] for i in both]),
+            "expert_steps_mean": steps([expert[i] for i in both]),
+        },
+        "commands": [" ".join(lerobot_cmd), " ".join(gcs_cmd)],
+    }
+    g = result["gcs_push_evaluate"]
+    g["steps_ratio"] = g["policy_steps_mean"] / g["expert_steps_mean"] if both else None
+    (HERE / f"base_{n}" / "validation.json").write_text(json.dumps(result, indent=1) + "\n")
+    print(json.dumps(result, indent=1))
+    return result
+
+
 if __name__ == "__main__":
-    if len(sys.argv) != 3 or sys.argv[1] not in ("dataset", "train") or int(sys.argv[2]) not in COUNTS:
-        raise SystemExit(f"usage: count_table.py dataset|train {'|'.join(map(str, COUNTS))}")
-    {"dataset": dataset, "train": train}[sys.argv[1]](int(sys.argv[2]))
+    commands = {"dataset": dataset, "train": train, "validate": validate}
+    if len(sys.argv) != 3 or sys.argv[1] not in commands or int(sys.argv[2]) not in COUNTS:
+        raise SystemExit(f"usage: count_table.py {'|'.join(commands)} {'|'.join(map(str, COUNTS))}")
+    commands[sys.argv[1]](int(sys.argv[2]))
