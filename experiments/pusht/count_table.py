@@ -130,7 +130,7 @@ def validate(n: int) -> dict:
             "policy_steps_mean": steps([mine[i] for i in both]),
             "expert_steps_mean": steps([expert[i] for i in both]),
         },
-        "commands": [" ".join(lerobot_cmd), " ".join(gcs_cmd)],
+        "commands": [" ".join(c).replace(f"{REPO}/", "") for c in (lerobot_cmd, gcs_cmd)],
     }
     g = result["gcs_push_evaluate"]
     g["steps_ratio"] = g["policy_steps_mean"] / g["expert_steps_mean"] if both else None
