@@ -202,14 +202,30 @@ def test_fig7_draws_the_slider_outline_along_the_path_and_at_the_goal(tee_eval, 
 
 
 @pytest.mark.slow
-def test_collect_takes_the_env_from_the_rollouts_and_refuses_one_without_a_cost_to_go(tee_eval, tmp_path):
-    from lerobot_gcs_push.active import CollectConfig, collect, rollouts_env_id
+def test_collect_takes_the_env_from_the_rollouts_and_branches_where_the_ts_coverage_stalls(tee_eval, tmp_path):
+    """The T has no cost-to-go: `collect` picks the states where the policy's coverage stalls (stalls.py),
+    in the T's own terms (position, heading, finger), each a start the T's env and `generate` accept."""
+    from lerobot_gcs_push.active import CollectConfig, rollouts_env_id
+    from lerobot_gcs_push.evaluation import GCS_POLICIES
+    from lerobot_gcs_push.scene import load_initial_conditions
+    from lerobot_gcs_push.stalls import stall_branch_states
 
     assert rollouts_env_id([str(tee_eval)]) == TEE_ENV_ID
-    root = tmp_path / "ds"
-    with pytest.raises(ValueError, match=f"no GCS cost-to-go for {TEE_ENV_ID} yet"):
-        collect(CollectConfig(rollouts=[str(tee_eval)], root=str(root)))
-    assert not root.exists()
+    scene = SCENES[TEE_ENV_ID]
+    records = [r | {"_source": str(tee_eval)} for r in read_runs(tee_eval / "runs.jsonl")]
+    cfg = CollectConfig(rollouts=[str(tee_eval)], max_per_run=3)
+    states = stall_branch_states(records, cfg, scene, GCS_POLICIES)
+    # Both runs failed (the box's policy on the T, 5 s): each gives up to 3 states, from its own trajectory.
+    assert 1 <= len(states) <= 6 and {s["source"]["initial_condition_index"] for s in states} <= {0, 1}
+    for s in states:
+        rec = next(r for r in records if r["initial_condition_index"] == s["source"]["initial_condition_index"])
+        pose = np.load(tee_eval / rec["trajectory"])["slider_pose"][s["source"]["step"]]
+        np.testing.assert_allclose([*s["box"], s["heading"]], pose, atol=1e-6)
+        assert s["source"]["coverage"] < scene.success_coverage
+    path = tmp_path / "states.json"
+    path.write_text(json.dumps(states))
+    for i, ic in enumerate(load_initial_conditions(str(path), scene)):  # what generate reads, checked as it does
+        scene.validate_start(ic, f"branch state {i}")
     box = tmp_path / "box_rollouts"  # a folder from before the env was recorded: the box's
     box.mkdir()
     (box / "runs.jsonl").write_text("")
