@@ -16,6 +16,7 @@ at the end of a session. The datasets are rebuilt from the lists with no plannin
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -88,8 +89,6 @@ LEROBOT_SEED, GCS_SEED, EPISODES = 4900, 4901, 50
 def validate(n: int) -> dict:
     """Both validation runs of base `n`'s weights at STEPS (its fp16 export, what would be committed and
     shipped), each skipped when its output is there; their figures in base_<n>/validation.json."""
-    import numpy as np
-
     base = HERE / f"base_{n}" / "partial"
     step = json.loads((base / "step.json").read_text())["step"]
     if step != STEPS:
@@ -106,7 +105,7 @@ def validate(n: int) -> dict:
         f"--num_initial_conditions={EPISODES}", "--runs=1", f"--seed={GCS_SEED}", "--workers=2", "--videos=1",
         f"--output_dir={out / 'gcs_evaluate'}",
     ]  # fmt: skip
-    env = {**__import__("os").environ, "HF_HUB_OFFLINE": "1", "OMP_WAIT_POLICY": "PASSIVE"}
+    env = {**os.environ, "HF_HUB_OFFLINE": "1", "OMP_WAIT_POLICY": "PASSIVE"}
     if not (out / "lerobot_eval" / "eval_info.json").is_file():
         subprocess.run(lerobot_cmd, check=True, env=env)
     subprocess.run(gcs_cmd, check=True, env=env)  # resumes: finished runs are kept
@@ -115,7 +114,6 @@ def validate(n: int) -> dict:
     mine = {r["initial_condition_index"]: r for r in runs if r["policy"] != "gcs-closed-loop"}
     expert = {r["initial_condition_index"]: r for r in runs if r["policy"] == "gcs-closed-loop"}
     both = [i for i in mine if mine[i]["success"] and expert[i]["success"]]
-    steps = lambda rs: float(np.mean([round(r["sim_time_s"] * 10) for r in rs])) if rs else None  # noqa: E731
     result = {
         "base": n,
         "step": step,
@@ -127,8 +125,8 @@ def validate(n: int) -> dict:
             "expert_success": sum(r["success"] for r in expert.values()) / len(expert),
             # Steps to success on the starts both succeeded on: the policy's mean over the expert's.
             "both_succeeded": len(both),
-            "policy_steps_mean": steps([mine[i] for i in both]),
-            "expert_steps_mean": steps([expert[i] for i in both]),
+            "policy_steps_mean": _mean_steps([mine[i] for i in both]),
+            "expert_steps_mean": _mean_steps([expert[i] for i in both]),
         },
         "commands": [" ".join(c).replace(f"{REPO}/", "") for c in (lerobot_cmd, gcs_cmd)],
     }
@@ -137,6 +135,11 @@ def validate(n: int) -> dict:
     (HERE / f"base_{n}" / "validation.json").write_text(json.dumps(result, indent=1) + "\n")
     print(json.dumps(result, indent=1))
     return result
+
+
+def _mean_steps(runs: list[dict]) -> float | None:
+    """Mean env steps to success (gym-pusht runs at 10 steps a simulated second)."""
+    return sum(round(r["sim_time_s"] * 10) for r in runs) / len(runs) if runs else None
 
 
 if __name__ == "__main__":
