@@ -14,7 +14,6 @@ from lerobot_gcs_push.planning import Planner, PlanningError, Speeds
 from lerobot_gcs_push.planning.expert import BOX_RULE, TURNING_RULE, PlanExpert
 
 EXPERTS = ("open-loop", "closed-loop")
-REPLANS = ("relaxation", "restriction")
 # gym-pusht's block is first order (it stops the moment the push does): no dwell. Its agent is steered onto
 # the plan's points (pusht_agent.target_for), so no lead either. In m/s (60 px/m). Commanded with the plan's
 # points at free 3, push 1.5 m/s, the lagging agent cut corners into the T: 4 of 6 starts (seed 77), one
@@ -81,16 +80,10 @@ class ExpertConfig:
     replan_every: int = 5
     replan_tolerance: float = 0.03
     max_replans: int = 50
-    # How a closed-loop replan is made: "relaxation" (the planner's certified `plan`, 3-5 s on gym-pusht's
-    # T) or "restriction" (`Planner.replan`: the last plan's remaining modes re-solved from the state now,
-    # uncertified, the relaxation only where that fails). The box plans in milliseconds either way.
-    replan: str = "relaxation"
 
     def __post_init__(self) -> None:
         if self.mode not in EXPERTS:
             raise ValueError(f"unknown expert {self.mode!r}: choose one of {EXPERTS}")
-        if self.replan not in REPLANS:
-            raise ValueError(f"unknown replan {self.replan!r}: choose one of {REPLANS}")
         if self.replan_every < 1:
             raise ValueError(f"replan_every must be >= 1, got {self.replan_every}")
 

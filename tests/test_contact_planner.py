@@ -296,47 +296,6 @@ def test_near_goal_start_is_rescued_by_the_fallback(planner):
     assert np.linalg.norm(end[:2] - plan.slider_final[:2]) < 0.03
 
 
-def _after_first_push(plan):
-    """The slider and finger where the plan's first push ends, the slider strayed by 1 cm and 0.02 rad."""
-    kinds = list(plan.segment_kinds)
-    k = kinds.index(PUSH)
-    while k < len(kinds) and kinds[k] == PUSH:
-        k += 1
-    return plan.slider_poses[k] + np.array([0.01, 0.0, 0.02]), plan.finger_path[k]
-
-
-def test_a_replan_restricts_the_last_plans_remaining_modes(planner, plans):
-    """Part way along a plan, `replan` re-solves the plan's remaining modes from the state now: a plan from
-    that state to the goal that obeys the same physics and geometry as any plan (checked as above, against
-    the re-integrated model and the shape's signed distance), uses the old plan's modes, and says it is
-    uncertified. Too costly a tail (tail_share 0), or no previous plan, and it is the relaxation's plan."""
-    for plan in plans:
-        pose, finger = _after_first_push(plan)
-        pose, finger = planner.plannable(pose, finger)
-        again = planner.replan(pose, finger, plan, tail_share=1.0)
-        assert again.method == "restriction" and not again.certified and again.gap is None
-        assert np.allclose(again.slider_poses[0], pose) and np.allclose(again.finger_path[0], finger)
-        assert np.allclose(again.slider_final[:2], SCENE.goal, atol=1e-5)
-        assert abs(math.remainder(again.slider_final[2] - SCENE.goal_heading, math.pi / 2)) < 1e-5
-        tail = again.extra["graph_path"]["contacts"]
-        assert tail == plan.extra["graph_path"]["contacts"][-len(tail) :]
-        assert again.cost < plan.cost  # what is left of a plan costs less than all of it
-        end = integrate(pose, again.pushes)
-        assert np.linalg.norm(end[:2] - again.slider_final[:2]) < 0.03 and abs(end[2] - again.slider_final[2]) < 0.03
-        for push in again.pushes:
-            assert np.all(np.abs(push["ft"]) <= SCENE.finger_box_friction * push["fn"] + 1e-6)
-        for k, kind in enumerate(again.segment_kinds):
-            if kind == FREE:
-                for w in np.linspace(0, 1, 25):
-                    q = (1 - w) * again.finger_path[k] + w * again.finger_path[k + 1]
-                    assert SCENE.shape.signed_distance(again.slider_poses[k], q) >= SCENE.finger_radius - 1e-6
-    pose, finger = planner.plannable(*_after_first_push(plans[0]))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for fresh in (planner.replan(pose, finger, plans[0], tail_share=0.0), planner.replan(pose, finger, None)):
-            assert fresh.method == "relaxation" and fresh.certified and fresh.lower_bound <= fresh.cost + 1e-6
-
-
 @pytest.mark.parametrize("steps, max_step", [(10, 0.2), (16, 0.2)])
 def test_knot_windows_hold_every_heading_sequence_a_plan_can_take(steps, max_step):
     """Brute force against `reachable_windows`: heading sequences drawn at random, each step turning at

@@ -264,47 +264,6 @@ class ContactPlanner:
             },
         )
 
-    def replan(self, slider_pose, finger, previous: Plan | None, tail_share: float = 0.5) -> Plan:
-        """From a state part way along `previous`: each tail of its mode sequence (its last push, its last
-        two, ...) restricted from here, the finger's shortest route to the tail's first face, SNOPT from the
-        straight-line guess; the cheapest that solves, uncertified (no relaxation ran). About a twentieth of
-        a plan's time on gym-pusht's T, where the relaxation is 3-5 s. Kept only where it costs at most
-        `tail_share` of `previous`: a correction near the end of a plan. Early in a plan the old modes suit
-        the new state less (on 20 gym-pusht starts, kept always, the episodes ran 16 % longer); there, where
-        no tail solves, or where `previous` took no path through this graph, the relaxation's certified
-        `plan`."""
-        path = (previous.extra.get("graph_path") if previous is not None else None) or {}
-        if not path.get("contacts"):
-            return self.plan(slider_pose, finger)
-        pose, q, goal, allow = self.query(slider_pose, finger)
-        t0 = time.perf_counter()
-        window = self.window(pose, goal)
-        frees, contacts = path["frees"], path["contacts"]
-        best, tried = None, 0
-        for j in range(len(contacts) - 1, -1, -1):
-            if abs(goal[2] - pose[2]) > (len(contacts) - j) * (self.knots - 1) * self.max_step:
-                continue  # the tail cannot turn that far
-            face = self.graph.contacts[contacts[j]].face
-            starts = [
-                f
-                for f in self.graph.starts()
-                if allow[self.graph.frees[f].source] and self.graph.frees[f].target == face
-            ]
-            if not starts:
-                continue
-            first = min(starts, key=lambda f: len(self.graph.frees[f].route))
-            r = self._restrict(Path((first, *frees[j + 1 :]), tuple(contacts[j:])), pose, q, goal, window)
-            tried += 1
-            if r.success and (best is None or r.cost < best.cost):
-                best = r
-        if best is None or best.cost > tail_share * previous.cost:
-            return self.plan(slider_pose, finger)
-        extra = {
-            "restriction_s": time.perf_counter() - t0,
-            "graph_path": {"frees": list(best.path.frees), "contacts": list(best.path.contacts)},
-        }
-        return self._plan("restriction", best, pose, goal, None, time.perf_counter() - t0, tried, extra)
-
     def baseline(self, slider_pose, finger) -> Plan:
         """The same nonlinear program without the relaxation: one push per layer, each from the face that
         looks away from the goal, reached by the shortest route, SNOPT from a straight-line guess. (One

@@ -174,10 +174,6 @@ class GcsPlanner:
             extra={"relaxation_time_s": flows.solve_time_s},
         )
 
-    def replan(self, box, finger, previous=None) -> Plan:
-        """A plan from here: the box's whole plan takes milliseconds, so there is nothing cheaper to reuse."""
-        return self.plan(box, finger)
-
     def goal_of(self, box) -> np.ndarray:
         return self.scene.goal_array
 

@@ -121,8 +121,6 @@ class PlanExpert:
         """A plan to the goal or, where none is found, to a waypoint part of the way there (the next replan
         goes on from it)."""
         try:
-            if self.plans and self.config.replan == "restriction":
-                return self.planner.replan(slider, finger, self.plans[-1])
             return self.planner.plan(slider, finger)
         except PlanningError:
             if not WAYPOINTS:

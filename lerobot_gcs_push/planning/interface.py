@@ -24,10 +24,6 @@ class Planner(Protocol):
         """The plan from the slider (the box's [x, y], or [x, y, heading]) and the finger to the scene's
         goal, or to `goal` (a waypoint of the same shape); raises PlanningError when there is none."""
 
-    def replan(self, slider, finger, previous: Plan | None, /) -> Plan:
-        """A plan to the scene's goal from a state `previous` was to pass near, cheaper than `plan` where the
-        planner has a cheaper way (the plan may then be uncertified); raises PlanningError when there is none."""
-
     def plannable(self, slider, finger) -> tuple[np.ndarray, np.ndarray]:
         """The nearest state the planner accepts to a measured one (a finger pressed into the slider, a
         slider knocked past the planner's reach)."""
