@@ -4,6 +4,7 @@ demonstrations, demonstrations only, equal training steps, in stages that surviv
     python experiments/pusht/count_table.py dataset 206   # rebuild local/gcs_pusht_206 from the replay lists
     python experiments/pusht/count_table.py train 206     # train (or resume) to STEPS; kill it any time
     python experiments/pusht/count_table.py validate 206  # the two fixed validation runs -> base_206/validation.json
+    python experiments/pusht/count_table.py decide        # the validated bases ranked by the fixed rule
 
 Every choice here was fixed on 2026-12-05 before any policy trained: the pool is the replay lists in
 `demos/` in seed order (4800, 4801, 4802, 4803), a count takes its first N episodes; the preset is
@@ -137,6 +138,28 @@ def validate(n: int) -> dict:
     return result
 
 
+def ranking(validations: list[dict]) -> list[dict]:
+    """The bases best first, by the rule fixed on 2026-12-05 before base 500's validation ran: LeRobot's
+    success on seed 4900, then its average max reward, then fewer demonstrations (the cheaper base). The
+    first is the base the rounds of active data start from; a base behind one already validated no longer
+    needs its weights across machines (its partial leaves the tree)."""
+    return sorted(
+        validations, key=lambda v: (-v["lerobot_eval"]["pc_success"], -v["lerobot_eval"]["avg_max_reward"], v["base"])
+    )
+
+
+def decide() -> list[dict]:
+    """Rank the bases validated so far (`ranking`) and print the order."""
+    found = [json.loads(p.read_text()) for p in sorted(HERE.glob("base_*/validation.json"))]
+    if not found:
+        raise SystemExit("no base is validated yet: count_table.py validate N")
+    order = ranking(found)
+    for v in order:
+        e = v["lerobot_eval"]
+        print(f"base {v['base']}: success {e['pc_success']:.1f} %, average max reward {e['avg_max_reward']:.3f}")
+    return order
+
+
 def _mean_steps(runs: list[dict]) -> float | None:
     """Mean env steps to success (gym-pusht runs at 10 steps a simulated second)."""
     return sum(round(r["sim_time_s"] * 10) for r in runs) / len(runs) if runs else None
@@ -144,6 +167,11 @@ def _mean_steps(runs: list[dict]) -> float | None:
 
 if __name__ == "__main__":
     commands = {"dataset": dataset, "train": train, "validate": validate}
-    if len(sys.argv) != 3 or sys.argv[1] not in commands or int(sys.argv[2]) not in COUNTS:
-        raise SystemExit(f"usage: count_table.py {'|'.join(commands)} {'|'.join(map(str, COUNTS))}")
-    commands[sys.argv[1]](int(sys.argv[2]))
+    if sys.argv[1:] == ["decide"]:
+        decide()
+    elif len(sys.argv) != 3 or sys.argv[1] not in commands or int(sys.argv[2]) not in COUNTS:
+        raise SystemExit(
+            f"usage: count_table.py {'|'.join(commands)} {'|'.join(map(str, COUNTS))}, or count_table.py decide"
+        )
+    else:
+        commands[sys.argv[1]](int(sys.argv[2]))
