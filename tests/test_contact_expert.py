@@ -264,3 +264,39 @@ def test_a_start_with_no_plan_is_a_failed_run_not_a_crash(monkeypatch):
     assert res["failed_replans"] == 1 and len(actions) == 10
     np.testing.assert_allclose(actions, np.tile(finger, (len(actions), 1)))  # held where it started
     np.testing.assert_allclose(res["slider_pose_final"], start, atol=1e-6)  # nothing pushed it
+
+
+def test_a_far_finger_with_no_plan_goes_straight_at_the_slider_and_plans_from_there(monkeypatch):
+    """A planner that fails from any finger farther from the slider's centre than its radius plus the
+    finger's plus the margin (the outline's farthest vertex from the pivot, computed here from the
+    vertices): the expert plans again from the point on the way to the centre at that distance, and its
+    first commands run from the finger straight along that line at free speed."""
+    from lerobot_gcs_push.expert import ExpertConfig, make_expert
+    from lerobot_gcs_push.planning import FREE, Plan, PlanningError
+    from lerobot_gcs_push.planning.expert import STAGE_MARGIN_M
+    from lerobot_gcs_push.rollout import rollout
+
+    env = gym.make(SE2_ENV_ID, max_sim_time_s=1.0, image_size=(32, 32)).unwrapped
+    expert = make_expert(SE2, env.fps, ExpertConfig(mode="closed-loop"))
+    radius = max(np.hypot(*v) for v in np.asarray(SE2.shape.outline)) + SE2.finger_radius + STAGE_MARGIN_M
+    queries = []
+
+    def near_only(slider, finger, goal=None):
+        queries.append(np.array(finger, float))
+        if np.linalg.norm(np.asarray(finger) - np.asarray(slider)[:2]) > radius + 1e-9:
+            raise PlanningError("no sampled path's restriction solved")
+        fingers = np.array([finger, np.asarray(finger) + [0.0, 0.1]])
+        return Plan("test", 1.0, 0.5, 0.0, [], np.array([slider, slider]), fingers, [FREE], np.asarray(slider))
+
+    monkeypatch.setattr(expert.planner, "plan", near_only)
+    start, finger = np.array([1.0, -1.0, 0.4]), np.array([-3.0, 2.0])
+    actions = []
+    res = rollout(env, expert, start[:2], finger, heading=start[2], on_step=lambda o, a, i: actions.append(a))
+    staged = start[:2] + (finger - start[:2]) * radius / np.linalg.norm(finger - start[:2])
+    assert len(queries) == 2  # the finger's own plan, then the staged one (no waypoints needed)
+    np.testing.assert_allclose(queries[1], staged, atol=1e-12)
+    assert res["plan"].extra["staged_from"] == pytest.approx(finger.tolist())
+    toward = (staged - finger) / np.linalg.norm(staged - finger)
+    step = expert.speeds.free / env.fps
+    np.testing.assert_allclose(actions[0], finger + step * toward, atol=1e-9)
+    np.testing.assert_allclose(actions[1], finger + 2 * step * toward, atol=1e-9)

@@ -200,3 +200,25 @@ def test_the_closed_loop_expert_succeeds_in_gym_pusht():
         acts = np.array(actions)
         assert acts.min() >= -1.0 and acts.max() <= 513.0  # pixels, not metres
         assert np.ptp(acts) > 50
+
+
+@pytest.mark.slow
+def test_an_agent_far_from_the_t_with_no_plan_from_where_it_stands_goes_to_it_first_and_succeeds():
+    """gym-pusht's reset of seed 9777 puts the agent 2.2 m (131 px) from the T's centre of gravity. From
+    there no sampled path's restriction solves (SNOPT finds each infeasible); the expert sends the agent
+    straight at the T, plans from just beyond its reach, and succeeds within gym-pusht's 300 steps."""
+    from lerobot_gcs_push.expert import ExpertConfig, make_expert
+    from lerobot_gcs_push.planning import PlanningError
+    from lerobot_gcs_push.rollout import rollout
+
+    env = make_env(PUSHT_ENV_ID, obs_type="state")
+    expert = make_expert(env.scene, env.fps, ExpertConfig(mode="closed-loop"))
+    planner = expert.expert.planner
+    _, info = env.reset(seed=9777)
+    slider, finger = planner.plannable(info["slider_pose"], info["finger"])
+    assert np.linalg.norm(finger - slider[:2]) > 2.0
+    with pytest.raises(PlanningError):
+        planner.plan(slider, finger)
+    res = rollout(env, expert, seed=9777)
+    assert res["success"] and res["coverage"] > 0.95 and res["sim_time_s"] <= 30.0
+    assert res["plan"].extra["staged_from"] == pytest.approx(finger.tolist())

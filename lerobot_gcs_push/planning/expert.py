@@ -21,6 +21,13 @@ from lerobot_gcs_push.planning.plan import DWELL, FREE, PUSH, Plan, Schedule, Sp
 # gym-pusht's wall, half a turn from its goal (seed 2027's sixth start), had no plan to the goal, one
 # halfway in 15 s and one a quarter of the way in 10 s.
 WAYPOINTS = (0.5, 0.25)
+# A finger far from the slider. Where no plan was found on gym-pusht (seed 4700's 33rd start, seeds 9763 and
+# 9777: fingers 2.2-3.6 m from the T), SNOPT found every sampled path's restriction infeasible; from 1.6 m
+# off the T, on any of six sides, seed 9777's T planned, and seed 9763's (2.9 rad from its goal) planned a
+# quarter of the way, which from the finger's own place it had not. So where no plan is found from a far
+# finger, the finger first goes straight at the slider, to this far beyond the reach of both (the slider's
+# radius about its pivot plus the finger's), and the plans, to the goal and then to the waypoints, start there.
+STAGE_MARGIN_M = 0.1
 
 
 @dataclass(frozen=True)
@@ -118,20 +125,34 @@ class PlanExpert:
         self._k = 0
 
     def _plan(self, slider, finger) -> Plan:
-        """A plan to the goal or, where none is found, to a waypoint part of the way there (the next replan
-        goes on from it)."""
+        """A plan to the goal; where none is found, from the staging point the finger goes to first when it
+        is far (`staging_point`), to the goal and then to waypoints part of the way there (the next replan
+        goes on from one)."""
         try:
             return self.planner.plan(slider, finger)
-        except PlanningError:
-            if not WAYPOINTS:
-                raise
-            goal = self.planner.goal_of(slider)
-        for i, share in enumerate(WAYPOINTS):
+        except PlanningError as err:
+            failure = err
+        staged = self.staging_point(slider, finger)
+        goal = self.planner.goal_of(slider)
+        targets = [slider + share * (goal - slider) for share in WAYPOINTS]
+        for target in targets if staged is None else [None, *targets]:
             try:
-                return self.planner.plan(slider, finger, slider + share * (goal - slider))
-            except PlanningError:
-                if i == len(WAYPOINTS) - 1:
-                    raise
+                plan = self.planner.plan(slider, finger if staged is None else staged, target)
+            except PlanningError as err:
+                failure = err
+                continue
+            return plan if staged is None else plan.preceded_by(finger)
+        raise failure
+
+    def staging_point(self, slider, finger) -> np.ndarray | None:
+        """The point on the line from the finger to the slider's centre STAGE_MARGIN_M beyond the reach of
+        both (the slider's radius about its pivot plus the finger's), when the finger is farther than that;
+        else None. The way there stays outside that circle, so it cannot touch the slider."""
+        scene = self.planner.scene
+        centre, finger = np.asarray(slider, float)[:2], np.asarray(finger, float)
+        radius = scene.shape.r_max + scene.finger_radius + STAGE_MARGIN_M
+        away = float(np.linalg.norm(finger - centre))
+        return centre + (finger - centre) * (radius / away) if away > radius else None
 
     def _clear(self, pose, point) -> bool:
         scene = self.planner.scene

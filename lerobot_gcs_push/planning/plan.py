@@ -4,7 +4,7 @@ its knots, the cost and its certified bound, and the timing that turns it into c
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from enum import StrEnum
 
 import numpy as np
@@ -111,6 +111,18 @@ class Plan:
     @property
     def finger_length(self) -> float:
         return float(np.sum(np.linalg.norm(np.diff(self.finger_path, axis=0), axis=1)))
+
+    def preceded_by(self, finger) -> Plan:
+        """This plan with the finger first moving straight (free) from `finger` to where the plan starts, the
+        slider at rest meanwhile. Cost and bound stay the plan's own, from its start; `extra` says so."""
+        finger = np.asarray(finger, float)
+        return replace(
+            self,
+            finger_path=np.vstack([finger[None], self.finger_path]),
+            slider_poses=np.vstack([self.slider_poses[:1], self.slider_poses]),
+            segment_kinds=[FREE, *self.segment_kinds],
+            extra={**self.extra, "staged_from": finger.tolist()},
+        )
 
     def with_approaches(self, distance: float, clear: Callable | None = None) -> tuple:
         """(finger path, slider poses, segment kinds) with each push after free motion reached along its
