@@ -133,6 +133,8 @@ class PlanExpert:
         except PlanningError as err:
             failure = err
         staged = self.staging_point(slider, finger)
+        if staged is not None:  # inside a free piece, as any start the planner takes
+            staged = self.planner.plannable(slider, staged)[1]
         goal = self.planner.goal_of(slider)
         targets = [slider + share * (goal - slider) for share in WAYPOINTS]
         for target in targets if staged is None else [None, *targets]:
