@@ -5,7 +5,7 @@ box's GCS cost-to-go that scores any policy's chunks (regret).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -55,8 +55,6 @@ def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=N
     replan rule for its slider; in pixels, with its agent steered, for a scene with a frame (gym-pusht).
     `planner` shares one planner between experts (it is costly to build)."""
     config = config or ExpertConfig()
-    if config.replan_tolerance is None:
-        config = replace(config, replan_tolerance=scene.replan_tolerance)
     planner = planner or make_planner(scene, config.method)
     expert = PlanExpert(planner, fps, config, speeds_for(scene), TURNING_RULE if scene.rotates else BOX_RULE)
     if scene.frame is not None:
@@ -80,7 +78,7 @@ class ExpertConfig:
     # Closed loop: every `replan_every` steps, outside pushes, replan if the box rests more than
     # `replan_tolerance` m from where the plan put it (a disturbance), or when the plan has run out.
     replan_every: int = 5
-    replan_tolerance: float | None = None  # None: the scene's (Scene.replan_tolerance)
+    replan_tolerance: float = 0.03
     max_replans: int = 50
 
     def __post_init__(self) -> None:
@@ -88,8 +86,6 @@ class ExpertConfig:
             raise ValueError(f"unknown expert {self.mode!r}: choose one of {EXPERTS}")
         if self.replan_every < 1:
             raise ValueError(f"replan_every must be >= 1, got {self.replan_every}")
-        if self.replan_tolerance is not None and not self.replan_tolerance > 0:
-            raise ValueError(f"replan_tolerance must be > 0 (metres), got {self.replan_tolerance}")
 
 
 class CostToGo:

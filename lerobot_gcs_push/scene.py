@@ -73,9 +73,6 @@ class Scene:
     # Planner geometry: the buffer that keeps the finger clear of the box while it moves around it,
     # and the perpendicular approach/retreat through which every push starts and ends.
     transition_buffer: float = 0.2
-    # The closed-loop expert replans where the slider strays this far from its plan (metres, plus radians
-    # times a turning slider's radius; expert.ExpertConfig.replan_tolerance overrides it).
-    replan_tolerance: float = 0.03
     # Slider: which shape is pushed (shapes.py) and whether it may turn. GcsPushBox-v0 is the box with
     # its yaw locked (the paper's convex simplification); the rotating envs set `rotates`.
     slider: str = "box"  # "box" (a square of box_size) or "tee" (gym-pusht's T, bar tee_bar_length)
