@@ -21,8 +21,9 @@ EXPERTS = ("open-loop", "closed-loop")
 # replanning; steered, at 2 / 1 m/s, seed 77's two failures and one more succeeded in 4-9 s.
 PUSHT_SPEEDS = Speeds(free=2.0, approach=1.0, push=1.0, retreat=2.0, push_dwell_s=0.0, push_lead=0.0)
 # A slider that turns in the Drake sim: the box's speeds and lead, no dwell: its plans chain pushes, and the
-# closed-loop expert replans where a push ended elsewhere.
-TURNING_SPEEDS = Speeds(push_dwell_s=0.0)
+# closed-loop expert replans where a push ended elsewhere. The lead builds up over its own length (0.34 m),
+# and the finger's sideways miss is steered out (experiments/rotation/README.md, "the finger gives way").
+TURNING_SPEEDS = Speeds(push_dwell_s=0.0, push_lead_ramp_m=0.34, push_lateral_gain=1.0)
 
 
 def check_cost_to_go(env_id: str, needed_by: str = "") -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+from dataclasses import replace
 
 import gymnasium as gym
 import numpy as np
@@ -188,8 +189,9 @@ def test_demonstrations_of_the_rotating_box_replay_in_the_sim_and_end_at_the_goa
 
 def test_push_commands_lead_the_plan_by_the_fingers_lag_but_never_past_the_pushs_end():
     """A hand-made plan: 1 m free along -y, then a 0.2 m push along +x in two knots. At 0.4 m/s the
-    finger trails by 0.4 * lag_s; commands run that far ahead, capped at the push's end point (no dwell
-    follows a turning slider's pushes: its speeds, expert.speeds_for)."""
+    finger trails by 0.4 * lag_s; commands run that far ahead once the push has gone the ramp's length
+    (before, the lead grows with the way pushed), capped at the push's end point (no dwell follows a
+    turning slider's pushes: its speeds, expert.speeds_for)."""
     from lerobot_gcs_push.expert import speeds_for
     from lerobot_gcs_push.planning import FREE, PUSH, Plan
 
@@ -202,12 +204,48 @@ def test_push_commands_lead_the_plan_by_the_fingers_lag_but_never_past_the_pushs
     plain = plan.commands(10, speeds)
     assert len(sched) == len(plain) == 15  # 1 s free + 0.5 s of push at 10 fps
     np.testing.assert_allclose(sched.commands[:10], plain[:10])  # no lead outside the push
+    ramp = speeds.push_lead_ramp_m
+    assert ramp > 0
     for k in range(10, 15):
-        on_plan = plain[k, 0]
-        assert sched.commands[k, 0] == pytest.approx(min(on_plan + lead, 0.2))
+        on_plan = plain[k, 0]  # the way pushed: the push starts at x = 0
+        assert sched.commands[k, 0] == pytest.approx(min(on_plan + lead * min(1.0, on_plan / ramp), 0.2))
         assert sched.commands[k, 1] == pytest.approx(0.0)
+    assert sched.commands[10, 0] - plain[10, 0] < lead / 2  # 4 cm pushed: a quarter of the lead at most
     assert sched.kinds[:10] == [FREE] * 10 and sched.kinds[10:] == [PUSH] * 5
     np.testing.assert_allclose(sched.slider[-1], poses[-1])  # the reference pose: the plan's slider pose
+
+
+def test_a_finger_pushed_sideways_is_steered_back_by_its_miss_across_the_push_only():
+    """A hand-made plan: a 0.4 m push along +x in four knots after 1 m of free motion. Mid-push, the
+    finger reported 5 cm to the side of (and 2 cm behind) the command it was sent: the next command moves
+    5 cm the other way across the push and not at all along it (the lead makes up the miss along it).
+    Outside pushes, and with no gain (gym-pusht, the box), commands are the schedule's."""
+    from types import SimpleNamespace
+
+    from lerobot_gcs_push.expert import speeds_for
+    from lerobot_gcs_push.planning import FREE, PUSH, Plan
+    from lerobot_gcs_push.planning.expert import TURNING_RULE, PlanExpert
+
+    fingers = np.array([[-1.0, 0.0], [0.0, 0.0], [0.1, 0.0], [0.2, 0.0], [0.3, 0.0], [0.4, 0.0]])
+    poses = np.array([[0.5 + max(f[0], 0.0), 0.0, 0.0] for f in fingers])
+    plan = Plan("test", 1.0, 0.5, 0.0, [], poses, fingers, [FREE, *[PUSH] * 4], np.zeros(3))
+    speeds = speeds_for(SE2)
+    assert speeds.push_lateral_gain == 1.0
+    sched = plan.schedule(10, speeds, 0.5)
+    first_push = sched.kinds.index(PUSH)
+    k = first_push + 3
+    for gain, shift in ((1.0, np.array([0.0, -0.05])), (0.0, np.zeros(2))):
+        config = SimpleNamespace(mode="open-loop")
+        expert = PlanExpert(None, 10, config, replace(speeds, push_lateral_gain=gain), TURNING_RULE)
+        expert._schedule, expert._k = sched, k
+        sent = sched.commands[k - 1]
+        cmd = expert.act(None, {"finger": sent + np.array([-0.02, 0.05])})
+        np.testing.assert_allclose(cmd, sched.commands[k] + shift, atol=1e-12)
+    expert = PlanExpert(None, 10, SimpleNamespace(mode="open-loop"), speeds, TURNING_RULE)
+    assert sched.kinds[:2] == [FREE, FREE]
+    expert._schedule, expert._k = sched, 1
+    cmd = expert.act(None, {"finger": sched.commands[0] + np.array([0.0, 0.05])})
+    np.testing.assert_allclose(cmd, sched.commands[1], atol=1e-12)
 
 
 def test_a_push_after_free_motion_is_reached_along_its_faces_normal_unless_that_point_is_blocked():

@@ -107,10 +107,15 @@ class PlanExpert:
             except PlanningError:  # a state the planner cannot plan from: keep to the old plan, try again later
                 self._failed(info)
         sched = self._schedule
-        cmd = sched.commands[min(self._k, len(sched) - 1)]
+        i = min(self._k, len(sched) - 1)
+        cmd = sched.commands[i].copy()
+        gain = self.speeds.push_lateral_gain
+        if gain > 0 and 1 <= self._k < len(sched) and sched.kinds[i] == PUSH:
+            sent = sched.commands[i - 1]
+            cmd += gain * _sideways(sent - np.asarray(info["finger"], float), cmd - sent)
         self._k += 1
         self._steps += 1
-        return cmd.copy()
+        return cmd
 
     def _replan(self, info: dict) -> None:
         slider, finger = self.planner.plannable(_slider(info), info["finger"])
@@ -192,6 +197,12 @@ class PlanExpert:
 def _slider(info: dict) -> np.ndarray:
     """The slider's pose: x, y, heading for one that turns (as rollout.py tells them apart), else the box."""
     return np.asarray(info["slider_pose"] if "slider_pose" in info else info["box"], float)
+
+
+def _sideways(miss: np.ndarray, along: np.ndarray) -> np.ndarray:
+    """The part of `miss` across the direction `along` (all of it where `along` is nil)."""
+    norm = float(np.linalg.norm(along))
+    return miss if norm < 1e-12 else miss - (miss @ along) / norm**2 * along
 
 
 def _state(info: dict) -> np.ndarray:

@@ -42,13 +42,20 @@ class Speeds:
     # so that the box stops where the plan ends. Measured on a 3 m push at 0.4 m/s: final box error
     # -2.6 cm with no lead and a 2 s dwell, +0.4 cm with 0.85 and a 1 s dwell, +3 cm with 1.0.
     push_lead: float = 0.85
+    # Over how much of a run of pushes (m) the lead builds up from nothing (0: at once). A finger at rest
+    # has no lag to make up: the whole lead at a push's start throws it at the face.
+    push_lead_ramp_m: float = 0.0
+    # While pushing, this share of the finger's sideways miss of its last command is added to the next. A PD
+    # finger gives way sideways to the face's force (the lead makes up the miss along the push only): the
+    # Drake T's finger slid 0.15-0.2 m along the face off the planned contact and the T stayed behind.
+    push_lateral_gain: float = 0.0
 
     def of(self, kind: SegmentKind) -> float:
         return getattr(self, kind)
 
     def __post_init__(self) -> None:
         for k, v in asdict(self).items():
-            if not (v >= 0 if k in ("push_dwell_s", "push_lead") else v > 0):
+            if not (v >= 0 if k in ("push_dwell_s", "push_lead", "push_lead_ramp_m", "push_lateral_gain") else v > 0):
                 raise ValueError(f"Speeds.{k} must be positive, got {v}")
 
 
@@ -209,7 +216,9 @@ class Plan:
                 run = path[a : b + 1]
                 arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(run, axis=0), axis=1))])
                 on = (t > t_knots[a] + 1e-12) & (t < t_knots[b] - 1e-9)  # as the segment kinds: (start, end]
-                ahead = np.interp(t[on], t_knots[a : b + 1], arc) + lead
+                done = np.interp(t[on], t_knots[a : b + 1], arc)
+                ramp = np.clip(done / speeds.push_lead_ramp_m, 0.0, 1.0) if speeds.push_lead_ramp_m > 0 else 1.0
+                ahead = done + lead * ramp
                 if speeds.push_dwell_s <= 0:
                     ahead = np.minimum(ahead, arc[-1])
                 cmd = np.stack([np.interp(ahead, arc, run[:, i]) for i in range(2)], axis=1)
