@@ -24,13 +24,16 @@ def step_map(kp: float = KP, kv: float = KV, dt: float = DT, substeps: int = SUB
     return m[:2]
 
 
-_MAP = step_map()
+_MAPS = {1: step_map()}
 
 
-def target_for(position, velocity, goal) -> np.ndarray:
-    """The target (px) that puts the agent, at `position` with `velocity` (px, px/s), at `goal` one action
-    later."""
-    (a, b, c) = _MAP[0]
+def target_for(position, velocity, goal, actions: int = 1) -> np.ndarray:
+    """The target (px) that, held for `actions` actions, puts the agent, at `position` with `velocity`
+    (px, px/s), at `goal`. One action amplifies the move 3.4 times and weighs the velocity by 0.10 s; over
+    three, 1.24 times and 0.014 s: targets that barely depend on the agent's velocity."""
+    if actions not in _MAPS:
+        _MAPS[actions] = step_map(substeps=SUBSTEPS * actions)
+    (a, b, c) = _MAPS[actions][0]
     return (np.asarray(goal, float) - a * np.asarray(position, float) - b * np.asarray(velocity, float)) / c
 
 

@@ -182,6 +182,12 @@ def test_the_steered_agent_lands_where_it_is_sent_in_gym_pusht(raw):
     start = np.array(raw.agent.position)
     raw.step(start + [20.0, 0.0])
     assert np.array(raw.agent.position)[0] - start[0] < 16.0  # the plain command: lag
+    for actions in (2, 3):  # a target held for several actions lands the agent at their end
+        goal = np.array(raw.agent.position) + rng.uniform(-40, 40, 2)
+        target = target_for(np.array(raw.agent.position), np.array(raw.agent.velocity), goal, actions)
+        for _ in range(actions):
+            raw.step(target)
+        np.testing.assert_allclose(np.array(raw.agent.position), goal, atol=1e-6)
 
 
 @pytest.mark.slow
