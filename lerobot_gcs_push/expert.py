@@ -15,7 +15,7 @@ from lerobot_gcs_push.planning.expert import BOX_RULE, TURNING_RULE, PlanExpert
 
 EXPERTS = ("open-loop", "closed-loop")
 # gym-pusht's block is first order (it stops the moment the push does): no dwell. Its agent is steered onto
-# the plan's points (pusht_agent.target_for), so no lead either. In m/s (60 px/m). Commanded with the plan's
+# the plan's points (pusht_agent.PixelActions), so no lead either. In m/s (60 px/m). Commanded with the plan's
 # points at free 3, push 1.5 m/s, the lagging agent cut corners into the T: 4 of 6 starts (seed 77), one
 # with 34 replans; at 1 / 0.5 m/s, seed 2026's first three took 10-27 s and the fourth over 6 min of
 # replanning; steered, at 2 / 1 m/s, seed 77's two failures and one more succeeded in 4-9 s.
@@ -59,9 +59,9 @@ def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=N
     planner = planner or make_planner(scene, config.method)
     expert = PlanExpert(planner, fps, config, speeds_for(scene), TURNING_RULE if scene.rotates else BOX_RULE)
     if scene.frame is not None:
-        from lerobot_gcs_push.pusht_agent import PixelActions, steered
+        from lerobot_gcs_push.pusht_agent import PixelActions
 
-        return PixelActions(expert, scene.frame, steered)
+        return PixelActions(expert, scene.frame, config.steer_actions)
     return expert
 
 
@@ -81,12 +81,22 @@ class ExpertConfig:
     replan_every: int = 5
     replan_tolerance: float = 0.03
     max_replans: int = 50
+    # gym-pusht only: its PD agent is sent the target that lands it on the plan's point this many actions
+    # on (pusht_agent.PixelActions). Over 2 rather than 1, the expert's targets jumped a third to a quarter
+    # as far, its demonstrations no longer (experiments/pusht/README.md, "Smoother actions").
+    steer_actions: int = 2
 
     def __post_init__(self) -> None:
         if self.mode not in EXPERTS:
             raise ValueError(f"unknown expert {self.mode!r}: choose one of {EXPERTS}")
         if self.replan_every < 1:
             raise ValueError(f"replan_every must be >= 1, got {self.replan_every}")
+        if not self.replan_tolerance > 0:  # also refuses NaN, which would never replan
+            raise ValueError(f"replan_tolerance must be > 0 (m), got {self.replan_tolerance}")
+        if self.max_replans < 0:
+            raise ValueError(f"max_replans must be >= 0, got {self.max_replans}")
+        if self.steer_actions < 1:
+            raise ValueError(f"steer_actions must be >= 1, got {self.steer_actions}")
 
 
 class CostToGo:

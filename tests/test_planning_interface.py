@@ -76,3 +76,17 @@ def test_the_reference_is_the_planned_slider_and_duration_counts_dwells():
     sched = plan.schedule(10, Speeds(free=1.0, push=0.5, push_dwell_s=0.0))
     np.testing.assert_allclose(sched.slider[14], [0.25, 0.0])  # t = 1.5 s: half a second into the push
     assert plan.num_pushes == 1 and plan.finger_length == pytest.approx(3.0)
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [("replan_tolerance", 0.0), ("replan_tolerance", float("nan")), ("max_replans", -1), ("steer_actions", 0)],
+)
+def test_expert_settings_out_of_range_are_refused_naming_the_field(field, value):
+    with pytest.raises(ValueError, match=field):
+        ExpertConfig(**{field: value})
+
+
+def test_the_pusht_expert_is_steered_over_its_configured_actions():
+    assert make_expert(PUSHT, 10, planner=object()).steer_actions == ExpertConfig().steer_actions == 2
+    assert make_expert(PUSHT, 10, ExpertConfig(steer_actions=1), planner=object()).steer_actions == 1

@@ -228,3 +228,40 @@ def test_an_agent_far_from_the_t_with_no_plan_from_where_it_stands_goes_to_it_fi
     res = rollout(env, expert, seed=9777)
     assert res["success"] and res["coverage"] > 0.95 and res["sim_time_s"] <= 30.0
     assert res["plan"].extra["staged_from"] == pytest.approx(finger.tolist())
+
+
+@pytest.mark.parametrize("steer_actions", [1, 2, 3])
+def test_the_steered_expert_tracks_its_plan_in_gym_pusht_over_n_actions(raw, steer_actions):
+    """A hand-made schedule, a 1 m/s ramp to the right (6 px an action), run by `PixelActions` in gym-pusht
+    itself, each action re-solved for the plan's point N actions on. Over one action the agent stands on
+    each command just sent (within 1e-6 px). Over N > 1 it settles at a constant distance ahead of it on
+    the ramp's line (a target held N actions overshoots the first of them), under a third of an action's
+    travel for N = 2 (measured 1.8 px; 5.5 for N = 3). Aimed one point early it would trail by 4 px, one
+    late it would lead by 8."""
+    from types import SimpleNamespace
+
+    from lerobot_gcs_push.planning import FREE, Schedule
+    from lerobot_gcs_push.planning.expert import BOX_RULE, PlanExpert
+    from lerobot_gcs_push.pusht_agent import PixelActions
+
+    start = np.array([-1.5, -1.5])  # metres: the agent's start, (166, 346) px
+    commands = start + np.outer(np.arange(1, 41) * 0.1, [1.0, 0.0])
+    inner = PlanExpert(None, 10, SimpleNamespace(mode="open-loop"), rule=BOX_RULE)
+    inner._schedule, inner._k = Schedule(commands, [FREE] * 40, np.zeros((40, 3))), 0
+    expert = PixelActions(inner, FRAME, steer_actions)
+    raw.reset(options={"reset_to_state": [*FRAME.to_px(start), 450.0, 100.0, 0.0]})
+    offsets = []
+    for k in range(30):
+        info = {"pos_agent": np.array(raw.agent.position), "vel_agent": np.array(raw.agent.velocity)}
+        raw.step(expert.act(None, info))
+        offsets.append(np.array(raw.agent.position) - FRAME.to_px(commands[k]))
+    settled = np.array(offsets[20:])
+    np.testing.assert_allclose(settled, np.broadcast_to(settled[0], settled.shape), atol=1e-6)  # a steady state
+    assert settled[0][1] == pytest.approx(0.0, abs=1e-9)  # on the ramp's line
+    lead = settled[0][0]
+    if steer_actions == 1:
+        np.testing.assert_allclose(offsets, 0.0, atol=1e-6)
+    else:
+        assert 0.0 < lead < (2.0 if steer_actions == 2 else 6.0)
+    with pytest.raises(ValueError, match="steer_actions"):
+        PixelActions(inner, FRAME, 0)

@@ -6,6 +6,10 @@ demonstrations, demonstrations only, equal training steps, in stages that surviv
     python experiments/pusht/count_table.py validate 206  # the two fixed validation runs -> base_206/validation.json
     python experiments/pusht/count_table.py decide        # the validated bases ranked by the fixed rule
 
+A base is named by its count, with its pool's name before it for a pool other than the first: `steer2_206`
+is the first 206 demonstrations of `demos/steer2/`, made from the same starts by the expert steered over two
+actions (`ExpertConfig.steer_actions`, 1 when the first pool was made); `count_table.py pool steer2` plans it.
+
 Every choice here was fixed on 2026-12-05 before any policy trained: the pool is the replay lists in
 `demos/` in seed order (4800, 4801, 4802, 4803), a count takes its first N episodes; the preset is
 `configs/policy/diffusion_pusht_cpu.json` (the box's CPU preset on lerobot/pusht's features); every count
@@ -18,6 +22,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -25,21 +30,32 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
 SEEDS = (4800, 4801, 4802, 4803)
-COUNTS = (206, 500, 1000)
+# The pools: where their replay lists are, and the expert settings that made them. The first (made with the
+# agent steered over one action) is the count table's; "steer2" replans its first list's starts steered
+# over two, for the A/B against base 206 (README.md, "Smoother actions").
+POOLS = {"": (HERE / "demos", 1), "steer2": (HERE / "demos" / "steer2", 2)}
+BASES = ("206", "500", "1000", "steer2_206")
 STEPS = 8000
 SEED = 1000
 PRESET = REPO / "configs" / "policy" / "diffusion_pusht_cpu.json"
 
 
-def repo_id(n: int) -> str:
-    return f"local/gcs_pusht_{n}"
+def split(name: str) -> tuple[str, int]:
+    """A base's pool and count: "206" -> ("", 206), "steer2_206" -> ("steer2", 206)."""
+    pool, _, n = name.rpartition("_")
+    return pool, int(n)
 
 
-def pool_list(n: int) -> Path:
-    """The first `n` episodes of the pool as one replay list (in outputs/, rebuilt, never committed)."""
+def repo_id(name: str) -> str:
+    return f"local/gcs_pusht_{name}"
+
+
+def pool_list(name: str) -> Path:
+    """The first episodes of the base's pool as one replay list (in outputs/, rebuilt, never committed)."""
+    pool, n = split(name)
     entries = []
     for seed in SEEDS:
-        path = HERE / "demos" / f"seed{seed}.json"
+        path = POOLS[pool][0] / f"seed{seed}.json"
         if len(entries) >= n:
             break
         if not path.is_file():
@@ -47,24 +63,50 @@ def pool_list(n: int) -> Path:
         entries += json.loads(path.read_text())
     if len(entries) < n:
         raise SystemExit(f"the pool has {len(entries)} episodes, {n} asked")
-    out = REPO / "outputs" / "pusht" / f"pool_{n}.json"
+    out = REPO / "outputs" / "pusht" / f"pool_{name}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(entries[:n]))
     return out
 
 
-def dataset(n: int) -> None:
+def plan_pool(pool: str, seed: int = SEEDS[0]) -> None:
+    """Plan a pool's list for one seed from the first pool's starts (their actions dropped), with the
+    expert's steering set to the pool's, in the same order and with the same episode count, so its count
+    sets hold the same starts but where one expert failed and the other did not. Its replay list lands in
+    `POOLS[pool][0]`: commit it."""
+    from lerobot_gcs_push.expert import ExpertConfig
     from lerobot_gcs_push.generate import lerobot_home
 
-    if (lerobot_home() / repo_id(n) / "meta" / "info.json").is_file():
-        print(f"{repo_id(n)} is there")
+    folder, steer = POOLS[pool]
+    if steer != ExpertConfig().steer_actions:
+        raise SystemExit(f"pool {pool!r} is steered over {steer}, the expert over {ExpertConfig().steer_actions}")
+    first = json.loads((HERE / "demos" / f"seed{seed}.json").read_text())
+    starts = REPO / "outputs" / "pusht" / f"starts_{seed}.json"
+    starts.parent.mkdir(parents=True, exist_ok=True)
+    starts.write_text(json.dumps([{"pusht_state": e["pusht_state"]} for e in first]))
+    repo = f"local/gcs_pusht_{pool}_s{seed}"
+    gcs_push = Path(sys.executable).parent / "gcs-push"
+    subprocess.run(
+        [str(gcs_push), "generate", "--env_id=gym_pusht/PushT-v0", f"--initial_conditions={starts}",
+         f"--episodes={len(first)}", f"--repo_id={repo}", "--expert=closed-loop", "--workers=2", "--resume=true"],
+        check=True,
+    )  # fmt: skip
+    folder.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(lerobot_home() / repo / "meta" / "gcs_push_replay.json", folder / f"seed{seed}.json")
+
+
+def dataset(name: str) -> None:
+    from lerobot_gcs_push.generate import lerobot_home
+
+    if (lerobot_home() / repo_id(name) / "meta" / "info.json").is_file():
+        print(f"{repo_id(name)} is there")
         return
     gcs_push = Path(sys.executable).parent / "gcs-push"
-    cmd = [str(gcs_push), "generate", "--env_id=gym_pusht/PushT-v0", f"--initial_conditions={pool_list(n)}"]
-    subprocess.run([*cmd, f"--repo_id={repo_id(n)}", "--workers=2", "--resume=true"], check=True)
+    cmd = [str(gcs_push), "generate", "--env_id=gym_pusht/PushT-v0", f"--initial_conditions={pool_list(name)}"]
+    subprocess.run([*cmd, f"--repo_id={repo_id(name)}", "--workers=2", "--resume=true"], check=True)
 
 
-def train(n: int) -> Path:
+def train(n: str) -> Path:
     from lerobot_gcs_push.training import TrainJob
     from lerobot_gcs_push.training import train as run
 
@@ -87,7 +129,7 @@ def train(n: int) -> Path:
 LEROBOT_SEED, GCS_SEED, EPISODES = 4900, 4901, 50
 
 
-def validate(n: int) -> dict:
+def validate(n: str) -> dict:
     """Both validation runs of base `n`'s weights at STEPS (its fp16 export, what would be committed and
     shipped), each skipped when its output is there; their figures in base_<n>/validation.json."""
     base = HERE / f"base_{n}" / "partial"
@@ -116,7 +158,7 @@ def validate(n: int) -> dict:
     expert = {r["initial_condition_index"]: r for r in runs if r["policy"] == "gcs-closed-loop"}
     both = [i for i in mine if mine[i]["success"] and expert[i]["success"]]
     result = {
-        "base": n,
+        "base": int(n) if n.isdigit() else n,
         "step": step,
         "lerobot_eval": {k: overall[k] for k in ("pc_success", "avg_max_reward", "avg_sum_reward") if k in overall}
         | {"n_episodes": EPISODES, "seed": LEROBOT_SEED},
@@ -144,7 +186,12 @@ def ranking(validations: list[dict]) -> list[dict]:
     first is the base the rounds of active data start from; a base behind one already validated no longer
     needs its weights across machines (its partial leaves the tree)."""
     return sorted(
-        validations, key=lambda v: (-v["lerobot_eval"]["pc_success"], -v["lerobot_eval"]["avg_max_reward"], v["base"])
+        validations,
+        key=lambda v: (
+            -v["lerobot_eval"]["pc_success"],
+            -v["lerobot_eval"]["avg_max_reward"],
+            split(str(v["base"]))[1],
+        ),
     )
 
 
@@ -169,9 +216,12 @@ if __name__ == "__main__":
     commands = {"dataset": dataset, "train": train, "validate": validate}
     if sys.argv[1:] == ["decide"]:
         decide()
-    elif len(sys.argv) != 3 or sys.argv[1] not in commands or int(sys.argv[2]) not in COUNTS:
+    elif len(sys.argv) == 3 and sys.argv[1] == "pool" and sys.argv[2] in POOLS and sys.argv[2]:
+        plan_pool(sys.argv[2])
+    elif len(sys.argv) != 3 or sys.argv[1] not in commands or sys.argv[2] not in BASES:
         raise SystemExit(
-            f"usage: count_table.py {'|'.join(commands)} {'|'.join(map(str, COUNTS))}, or count_table.py decide"
+            f"usage: count_table.py {'|'.join(commands)} {'|'.join(BASES)}, count_table.py pool "
+            f"{'|'.join(p for p in POOLS if p)}, or count_table.py decide"
         )
     else:
-        commands[sys.argv[1]](int(sys.argv[2]))
+        commands[sys.argv[1]](sys.argv[2])

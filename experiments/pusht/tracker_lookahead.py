@@ -1,7 +1,8 @@
-"""The gym-pusht expert's actions steered over one action (the setting) or over N (the target held N
-actions lands the agent on the plan's point N actions ahead), alternated start by start on gym-pusht's
-resets: success, steps, and what the actions ask of a policy (their jumps, their distance from the agent,
-the share of their variance that the agent's velocity explains). One JSON line per start and setting.
+"""The gym-pusht expert's actions steered over one action or over N (the target held N actions lands the
+agent on the plan's point N actions ahead; N = 2 is the setting since 2026-12-05), alternated start by
+start on gym-pusht's resets: success, steps, and what the actions ask of a policy (their jumps, their
+distance from the agent, the share of their variance that the agent's velocity explains). One JSON line
+per start and setting.
 
     python experiments/pusht/tracker_lookahead.py 9901 9921 1,3
 """
@@ -13,23 +14,12 @@ import time
 import numpy as np
 
 from lerobot_gcs_push.expert import ExpertConfig, make_expert, make_planner
-from lerobot_gcs_push.pusht_agent import PixelActions, target_for
+from lerobot_gcs_push.pusht_agent import PixelActions
 from lerobot_gcs_push.registration import make_env
 
 env = make_env("gym_pusht/PushT-v0")
 planner = make_planner(env.scene)
 planner.warm_up()
-
-
-def tracker(n: int, plan_expert):
-    def track(info, point):
-        if n == 1:
-            return target_for(info["pos_agent"], info["vel_agent"], point)
-        sched = plan_expert._schedule  # the command just sent is at _k - 1; the plan's point n - 1 later
-        ahead = env.scene.frame.to_px(sched.commands[min(plan_expert._k - 1 + n - 1, len(sched) - 1)])
-        return target_for(info["pos_agent"], info["vel_agent"], ahead, n)
-
-    return track
 
 
 def velocity_share(actions, pos, vel) -> float:
@@ -48,7 +38,7 @@ ns = [int(n) for n in sys.argv[3].split(",")]
 for seed in range(int(sys.argv[1]), int(sys.argv[2])):
     for n in ns if seed % 2 == 0 else ns[::-1]:
         inner = make_expert(env.scene, env.fps, ExpertConfig(mode="closed-loop"), planner)
-        expert = PixelActions(inner.expert, env.scene.frame, tracker(n, inner.expert))
+        expert = PixelActions(inner.expert, env.scene.frame, n)
         obs, info = env.reset(seed=seed)
         t0 = time.perf_counter()
         expert.reset(obs, info, seed)

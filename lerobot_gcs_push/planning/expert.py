@@ -117,6 +117,12 @@ class PlanExpert:
         self._steps += 1
         return cmd
 
+    def ahead(self, n: int) -> np.ndarray:
+        """The command the plan sends n - 1 actions after the one `act` just returned (where it wants the
+        finger n actions on): the last one past the plan's end."""
+        sched = self._schedule
+        return sched.commands[min(max(self._k - 1, 0) + n - 1, len(sched) - 1)].copy()
+
     def _replan(self, info: dict) -> None:
         slider, finger = self.planner.plannable(_slider(info), info["finger"])
         t0 = time.perf_counter()
