@@ -90,4 +90,9 @@ def check_pusht_state(state) -> np.ndarray:
         raise ValueError(f"pusht_state must be [agent_x, agent_y, block_x, block_y, angle], got {state!r}")
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"pusht_state must be finite, got {arr.tolist()}")
+    # The block's origin lies on its outline, which gym-pusht's walls keep inside the arena. (The agent passes
+    # through walls; its bound is the planner's workspace, checked in px by `Scene.validate_start`.)
+    u, v = arr[2:4]
+    if not (0 <= u <= ARENA_PX and 0 <= v <= ARENA_PX):
+        raise ValueError(f"pusht_state's block ({u:g}, {v:g}) px lies outside gym-pusht's arena [0, {ARENA_PX:g}] px")
     return arr

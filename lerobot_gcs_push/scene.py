@@ -272,7 +272,16 @@ class Scene:
 
     def validate_start(self, ic: dict, what: str) -> tuple[np.ndarray, np.ndarray]:
         """`validate_state` of an initial condition's entry (`load_initial_conditions`). gym-pusht's own
-        resets may put the agent inside the T, so a scene with a pixel frame lets the finger overlap."""
+        resets may put the agent inside the T, so a scene with a pixel frame lets the finger overlap; its
+        agent is checked in the px it was given."""
+        if self.frame is not None and "pusht_state" in ic:
+            (u, v), limit = ic["pusht_state"][:2], self.finger_limit
+            lo, hi = self.frame.to_px([-limit, limit]), self.frame.to_px([limit, -limit])  # y flips
+            if not (lo[0] <= u <= hi[0] and lo[1] <= v <= hi[1]):
+                raise ValueError(
+                    f"{what}: pusht_state's agent ({u:g}, {v:g}) px lies outside the planner's workspace "
+                    f"[{lo[0]:.0f}, {hi[0]:.0f}] px on both axes"
+                )
         return self.validate_state(
             ic["box"], ic["finger"], heading=ic.get("heading", 0.0), what=what, allow_overlap=self.frame is not None
         )

@@ -131,6 +131,13 @@ def test_bad_input_is_refused_by_name(target):
         check_pusht_state([1, 2, 3])
     with pytest.raises(ValueError, match="pusht_state must be finite"):
         target.reset(options={"pusht_state": [1, 2, 3, 4, float("nan")]})
+    with pytest.raises(ValueError, match=r"pusht_state's block \(200, -1\) px lies outside gym-pusht's arena"):
+        check_pusht_state([100, 10, 200, -1, 0.5])
+    check_pusht_state([0, 512, 0, 512, 0.5])  # the arena's edges are in it
+    ic = {"pusht_state": [600, 10, 200, 200, 0.5], "box": [0.0, 0.0], "finger": [0.0, 0.0]}
+    with pytest.raises(ValueError, match=r"entry 3: pusht_state's agent \(600, 10\) px lies outside"):
+        SCENE.validate_start(ic, "entry 3")  # 5.7 m from the centre: beyond the planner's 5.3 m workspace
+    assert FRAME.to_m([600, 10])[0] > SCENE.finger_limit
     with pytest.raises(ValueError, match="action must be finite"):
         target.step([float("nan"), 0.0])
     with pytest.raises(ValueError, match="fps"):
