@@ -80,7 +80,7 @@ def plan_pool(pool: str, seed: int = SEEDS[0]) -> None:
     folder, steer = POOLS[pool]
     if steer != ExpertConfig().steer_actions:
         raise SystemExit(f"pool {pool!r} is steered over {steer}, the expert over {ExpertConfig().steer_actions}")
-    first = json.loads((HERE / "demos" / f"seed{seed}.json").read_text())
+    first = json.loads((POOLS[""][0] / f"seed{seed}.json").read_text())
     starts = REPO / "outputs" / "pusht" / f"starts_{seed}.json"
     starts.parent.mkdir(parents=True, exist_ok=True)
     starts.write_text(json.dumps([{"pusht_state": e["pusht_state"]} for e in first]))
