@@ -457,3 +457,80 @@ def test_pusht_rounds_time_the_policy_against_the_closed_loop_expert_on_gym_push
             round=imp.RoundConfig(hard=0),
             validation=imp.ValidationConfig(hard=0),
         )
+
+
+def test_pusht_rounds_start_from_the_committed_base_and_replay_its_demonstrations(tmp_path, monkeypatch):
+    """configs/improve/pusht.json: the rounds start from base 1000's committed weights (copied into the
+    policy folder, fp16, never moved), every merge replays the pool that base trained on (the first
+    `base.episodes` of `base.lists`, in order, no planning), a round's labelled states are rebuilt by
+    replay from the list its collect kept, and a run on its way whose policy folder is gone is refused
+    rather than begun again from nothing."""
+    import draccus
+    import torch
+    from safetensors.torch import load_file
+
+    import lerobot_gcs_push.generate as gen
+    import lerobot_gcs_push.improve as imp
+    from lerobot_gcs_push.improve.state import STATE_FILE, State
+
+    monkeypatch.chdir(ROOT)
+    _pretrained(tmp_path / "base", 0.3)
+    (tmp_path / "base" / "step.json").write_text('{"step": 8000}')
+
+    def parse(*extra):
+        return draccus.parse(
+            imp.ImproveConfig,
+            args=[
+                "--config_path=configs/improve/pusht.json",
+                f"--policy={tmp_path / 'policy'}",
+                f"--from_policy={tmp_path / 'base'}",
+                f"--state_dir={tmp_path / 's'}",
+                f"--work_dir={tmp_path / 'w'}",
+                *extra,
+            ],
+        )
+
+    class Stop(Exception):
+        pass
+
+    def stage(self, name, run):
+        raise Stop(name)
+
+    monkeypatch.setattr(imp.Improver, "stage", stage)
+    with pytest.raises(Stop, match=r"^r1\.rollouts$"):  # no base stages: straight to round 1
+        imp.Improver(parse()).run()
+    w = load_file(tmp_path / "policy" / "model.safetensors")["w"]
+    assert w.dtype == torch.float16 and torch.equal(w, torch.full((2,), 0.3).half())
+    assert not (tmp_path / "policy" / "step.json").exists()
+
+    made = []
+    monkeypatch.setattr(gen, "generate", made.append)
+    monkeypatch.setattr(gen, "merge_datasets", lambda *a, **k: None)
+    lists = [json.loads((ROOT / p).read_text()) for p in parse().base.lists]
+    pool = [e for lst in lists for e in lst]
+    assert len(lists[0]) < 300 < len(pool)  # the cut below crosses from the first list into the second
+    improver = imp.Improver(parse("--base.episodes=300"))
+    r1 = tmp_path / "s" / "r1"
+    r1.mkdir(parents=True)
+    (r1 / "branch_states.json").write_text(json.dumps([{"pusht_state": e["pusht_state"]} for e in pool[:2]]))
+    (r1 / "replay.json").write_text(json.dumps(pool[5:7]))
+    improver.run_merge(1)
+    base, states = made
+    assert base.expert == "replay" and base.episodes == 300
+    assert json.loads(Path(base.initial_conditions).read_text()) == pool[:300]
+    assert states.expert == "replay" and Path(states.initial_conditions) == r1 / "replay.json"
+    (r1 / "replay.json").unlink()  # a round collected before the list was kept: labelled again
+    made.clear()
+    improver.run_merge(1)
+    assert made[1].expert == "closed-loop" and Path(made[1].initial_conditions) == r1 / "branch_states.json"
+    with pytest.raises(ValueError, match="hold 1000 episodes, base.episodes asks for 1001"):
+        imp.Improver(parse("--base.episodes=1001")).base_dataset()
+
+    shutil.rmtree(tmp_path / "policy")  # a fresh clone in which a round had shipped and the policy was not committed
+    state = State.load(tmp_path / "s" / STATE_FILE)
+    state.stages = {f"r1.{n}": {"done": True, "wall_s": 1.0} for n in imp.STAGES}
+    state.rounds = [{"round": 1, "shipped": True}]
+    state.save()
+    with pytest.raises(FileNotFoundError, match="holds no policy although"):
+        imp.Improver(parse()).run()
+    assert not (tmp_path / "policy").exists()

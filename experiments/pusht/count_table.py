@@ -8,7 +8,8 @@ demonstrations, demonstrations only, equal training steps, in stages that surviv
 
 A base is named by its count, with its pool's name before it for a pool other than the first: `steer2_206`
 is the first 206 demonstrations of `demos/steer2/`, made from the same starts by the expert steered over two
-actions (`ExpertConfig.steer_actions`, 1 when the first pool was made); `count_table.py pool steer2` plans it.
+actions (`ExpertConfig.steer_actions`, 1 when the first pool was made); `count_table.py pool steer2 [SEED ...]`
+plans its list for each of the first pool's seeds given (4800 alone by default).
 
 Every choice here was fixed on 2026-12-05 before any policy trained: the pool is the replay lists in
 `demos/` in seed order (4800, 4801, 4802, 4803), a count takes its first N episodes; the preset is
@@ -216,12 +217,16 @@ if __name__ == "__main__":
     commands = {"dataset": dataset, "train": train, "validate": validate}
     if sys.argv[1:] == ["decide"]:
         decide()
-    elif len(sys.argv) == 3 and sys.argv[1] == "pool" and sys.argv[2] in POOLS and sys.argv[2]:
-        plan_pool(sys.argv[2])
+    elif len(sys.argv) >= 3 and sys.argv[1] == "pool" and sys.argv[2] in POOLS and sys.argv[2]:
+        # each seed's list is committed as it lands, so a stopped run loses at most the seed in hand
+        for seed in [int(s) for s in sys.argv[3:]] or [SEEDS[0]]:
+            if seed not in SEEDS:
+                raise SystemExit(f"seed {seed} is not one of the first pool's {SEEDS}")
+            plan_pool(sys.argv[2], seed)
     elif len(sys.argv) != 3 or sys.argv[1] not in commands or sys.argv[2] not in BASES:
         raise SystemExit(
             f"usage: count_table.py {'|'.join(commands)} {'|'.join(BASES)}, count_table.py pool "
-            f"{'|'.join(p for p in POOLS if p)}, or count_table.py decide"
+            f"{'|'.join(p for p in POOLS if p)} [SEED ...], or count_table.py decide"
         )
     else:
         commands[sys.argv[1]](sys.argv[2])

@@ -7,8 +7,9 @@ disturbances, on seeds no evaluation set uses) -> stop here if it meets the targ
 conditions -> `collect` branch states labelled by the expert -> merge them with the base demonstrations
 and every earlier round's states (LeRobot's aggregation) -> fine-tune the current weights -> a fresh
 validation set, decided by the shipping rule (`shipping.py`) -> ship into the policy folder, or keep the
-old one. From nothing, base demonstrations and a first training come before round 1. It also stops on a
-budget of rounds or hours.
+old one. From nothing, base demonstrations and a first training come before round 1; from a committed
+base (`from_policy`), its weights are copied in and the demonstrations it learned from replayed from their
+lists (`base.lists`). It also stops on a budget of rounds or hours.
 
 Every stage resumes after `kill -9`. What another machine needs to resume is small: the policy folder and
 `state_dir` (the state file: stages done, their wall times, each round's scores and decision, drawn as

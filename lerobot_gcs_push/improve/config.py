@@ -30,6 +30,11 @@ class BaseConfig:
     steps: int = 8000
     # Peak learning rate; None keeps the preset's (2e-4).
     lr: float | None = None
+    # Replay lists of the demonstrations an existing policy was trained on (a dataset's
+    # meta/gcs_push_replay.json; gym-pusht's pool: experiments/pusht/demos/seed480*.json), in order: every
+    # merge then holds the first `episodes` of them, replayed with no planning, instead of `episodes` new
+    # ones planned from `sampler` and `seed` (a fresh machine rebuilds 1000 in minutes, not an hour).
+    lists: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -86,6 +91,10 @@ class ImproveConfig(FanOut):
     # The policy folder to improve in place: a LeRobot pretrained_model directory, or a path where none is
     # yet (then from nothing: base demonstrations and a first training). Winners are written here.
     policy: str = "outputs/improve/policy"
+    # A pretrained_model folder the rounds start from: copied into `policy` (fp16) while that holds none and
+    # no round has shipped, so a committed base (experiments/pusht/base_1000/partial) is neither moved nor
+    # copied in the repository; on a fresh machine the copy is made again. None: `policy` or from nothing.
+    from_policy: str | None = None
     # Small, committable state: the state file, branch-state lists, pending weights.
     state_dir: str = "outputs/improve/state"
     # Large, rebuilt on demand: rollouts, validation runs, training checkpoints.
@@ -150,6 +159,14 @@ class ImproveConfig(FanOut):
         for p in self.prior_states:
             if not Path(p).is_file():
                 raise FileNotFoundError(f"prior_states: {p!r} does not exist")
+        self.base.lists = [_canonical(p) for p in self.base.lists]
+        for p in self.base.lists:
+            if not Path(p).is_file():
+                raise FileNotFoundError(f"base.lists: {p!r} does not exist")
+        if self.from_policy is not None:
+            self.from_policy = _canonical(self.from_policy)
+            if not is_pretrained_dir(self.from_policy):
+                raise ValueError(f"from_policy {self.from_policy!r} is not a LeRobot pretrained_model directory")
         if Path(self.policy).exists() and not is_pretrained_dir(self.policy):
             raise ValueError(f"{self.policy} exists but is not a LeRobot pretrained_model directory")
         check_device(self.device)

@@ -4,6 +4,7 @@ fine-tune, validation and the decision, each a resumable stage (`State.run_stage
 from __future__ import annotations
 
 import functools
+import json
 import shutil
 from collections.abc import Callable
 from dataclasses import asdict
@@ -61,6 +62,17 @@ class Improver:
         from lerobot_gcs_push.generate import GenerateConfig, generate
 
         b = self.cfg.base
+        if b.lists:  # the demonstrations the policy was trained on, replayed
+            generate(
+                GenerateConfig(
+                    initial_conditions=str(self.base_list()),
+                    repo_id=self.repo("base"),
+                    env_id=self.cfg.env_id,
+                    **self.cfg.fan_out(),
+                    resume=True,
+                )
+            )
+            return
         generate(
             GenerateConfig(
                 episodes=b.episodes,
@@ -72,6 +84,19 @@ class Improver:
                 resume=True,
             )
         )
+
+    def base_list(self) -> Path:
+        """`base.lists` joined in order and cut to `base.episodes`: one replay list in work_dir (rebuilt)."""
+        entries: list = []
+        for path in self.cfg.base.lists:
+            entries += json.loads(Path(path).read_text())
+        n = self.cfg.base.episodes
+        if len(entries) < n:
+            raise ValueError(f"base.lists hold {len(entries)} episodes, base.episodes asks for {n}")
+        out = self.work / "base_list.json"
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(entries[:n]))
+        return out
 
     def base_train(self) -> None:
         self.base_dataset()  # returns at once when the cache has it; a fresh machine rebuilds it
@@ -187,9 +212,15 @@ class Improver:
     def states_file(self, k: int) -> Path:
         return self.state_dir / f"r{k}" / "branch_states.json"
 
+    def replay_file(self, k: int) -> Path:
+        """The labelled episodes of round k's states as run (a replay list): what rebuilds them with no
+        planning. Rounds collected before it was kept are rebuilt from `states_file` by the expert."""
+        return self.state_dir / f"r{k}" / "replay.json"
+
     def run_collect(self, k: int) -> None:
         from lerobot_gcs_push.active import CollectConfig, collect
         from lerobot_gcs_push.generate import GenerateConfig, dataset_root
+        from lerobot_gcs_push.replay import REPLAY_META
 
         counts = (self.cfg.round.hard, self.cfg.round.uniform)
         if any(n and not (p / "runs.jsonl").is_file() for n, p in zip(counts, self.rollouts(k))):
@@ -206,8 +237,9 @@ class Improver:
         root = dataset_root(GenerateConfig(repo_id=cfg.repo_id))
         self.states_file(k).parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(root.with_name(root.name + ".branch_states.json"), self.states_file(k))
+        shutil.copyfile(root / REPLAY_META, self.replay_file(k))
 
-    def ensure_states(self, what: str, states: Path, seed: int) -> None:
+    def ensure_states(self, what: str, states: Path, seed: int, expert: str = "closed-loop") -> None:
         """A labelled-state dataset, rebuilt from its kept list on a machine that lacks it."""
         from lerobot_gcs_push.generate import GenerateConfig, generate
 
@@ -219,7 +251,7 @@ class Improver:
                 repo_id=self.repo(what),
                 env_id=self.cfg.env_id,
                 seed=seed,
-                expert="closed-loop",
+                expert=expert,
                 **self.cfg.fan_out(),
                 resume=True,
             )
@@ -237,7 +269,10 @@ class Improver:
         for i, states in enumerate(self.cfg.prior_states):  # as the hand-run rounds rebuilt them: seed 0
             self.ensure_states(f"prior{i}", Path(states), seed=0)
         for j in range(1, k + 1):  # keep every round's states (round 2 dropped round 1's and forgot it)
-            self.ensure_states(f"r{j}", self.states_file(j), seed=self.seed(j, 2))
+            if self.replay_file(j).is_file():
+                self.ensure_states(f"r{j}", self.replay_file(j), seed=self.seed(j, 2), expert="replay")
+            else:
+                self.ensure_states(f"r{j}", self.states_file(j), seed=self.seed(j, 2))
         merge_datasets([self.repo(w) for w in self.merged_inputs(k)], self.repo(f"r{k}_merged"), desc=f"r{k} merge")
 
     def candidate(self, k: int) -> Path:
@@ -321,7 +356,14 @@ class Improver:
 
     def run(self) -> dict:
         cfg = self.cfg
-        if "base.demonstrations" in self.state.stages or not is_pretrained_dir(cfg.policy):
+        shipped = any(r.get("shipped") for r in self.state.rounds)
+        if cfg.from_policy and not is_pretrained_dir(cfg.policy) and not shipped:
+            print(f"starting from {cfg.from_policy}: copied to {cfg.policy}")
+            export_policy(cfg.from_policy, cfg.policy, overwrite=True)
+            (Path(cfg.policy) / "step.json").unlink(missing_ok=True)  # a partial's bookkeeping
+        # From nothing: a run that began so, or a new run with no policy. A run on its way whose policy
+        # folder is missing is refused below, not trained again from nothing.
+        if "base.demonstrations" in self.state.stages or (not self.state.stages and not is_pretrained_dir(cfg.policy)):
             if not self.state.stages:
                 print(f"no policy at {cfg.policy}: starting from nothing (base demonstrations, then training)")
             self.stage("base.demonstrations", self.base_dataset)
@@ -330,8 +372,8 @@ class Improver:
             print(f"improving {cfg.policy} in place")
         if not is_pretrained_dir(cfg.policy):
             raise FileNotFoundError(
-                f"{cfg.policy} holds no policy although {self.state.path} says it was trained: commit or copy "
-                "the policy folder with the state folder"
+                f"{cfg.policy} holds no policy although {self.state.path} records this run's stages: commit or "
+                "copy the policy folder with the state folder"
             )
         k = 1
         while self.state.done(f"r{k}.decision"):
