@@ -462,9 +462,9 @@ def test_pusht_rounds_time_the_policy_against_the_closed_loop_expert_on_gym_push
 def test_pusht_rounds_start_from_the_committed_base_and_replay_its_demonstrations(tmp_path, monkeypatch):
     """configs/improve/pusht.json: the rounds start from base 1000's committed weights (copied into the
     policy folder, fp16, never moved), every merge replays the pool that base trained on (the first
-    `base.episodes` of `base.lists`, in order, no planning), a round's labelled states are rebuilt by
-    replay from the list its collect kept, and a run on its way whose policy folder is gone is refused
-    rather than begun again from nothing."""
+    `base.episodes` of `base.lists`, in order, no planning), collect labels at most 4 states a rollout and
+    keeps their episodes' replay list, a round's labelled states are rebuilt by replay from it, and a run
+    on its way whose policy folder is gone is refused rather than begun again from nothing."""
     import draccus
     import torch
     from safetensors.torch import load_file
@@ -502,6 +502,30 @@ def test_pusht_rounds_start_from_the_committed_base_and_replay_its_demonstration
     w = load_file(tmp_path / "policy" / "model.safetensors")["w"]
     assert w.dtype == torch.float16 and torch.equal(w, torch.full((2,), 0.3).half())
     assert not (tmp_path / "policy" / "step.json").exists()
+
+    # collect: 4 states a rollout at most, and the labelled episodes' replay list kept beside the states
+    import lerobot_gcs_push.active as active
+
+    monkeypatch.setenv("HF_LEROBOT_HOME", str(tmp_path / "home"))
+    improver = imp.Improver(parse())
+    for out in improver.rollouts(1)[1:]:
+        out.mkdir(parents=True)
+        (out / "runs.jsonl").write_text("")
+    asked = []
+
+    def collect(c):
+        asked.append(c)
+        root = tmp_path / "home" / c.repo_id
+        (root / "meta").mkdir(parents=True)
+        root.with_name(root.name + ".branch_states.json").write_text('["states"]')
+        (root / "meta" / "gcs_push_replay.json").write_text('["episodes"]')
+
+    monkeypatch.setattr(active, "collect", collect)
+    improver.run_collect(1)
+    assert asked[0].max_per_run == 4 and asked[0].rollouts == [str(improver.rollouts(1)[1])]
+    assert json.loads(improver.states_file(1).read_text()) == ["states"]
+    assert json.loads(improver.replay_file(1).read_text()) == ["episodes"]
+    shutil.rmtree(tmp_path / "s" / "r1")
 
     made = []
     monkeypatch.setattr(gen, "generate", made.append)

@@ -51,6 +51,10 @@ class RoundConfig:
     # Branch from chunks above this regret in successful runs too (rounds 10 and 11: a success's
     # 0.25-0.5 m detours are where the extra time goes; round 11 shortened the path with it).
     large_regret_m: float = 0.25
+    # Branch states at most per rollout, spread over its time (collect's `max_per_run`): each is a whole
+    # expert episode to label. The box's rounds took 12; gym-pusht's take 4 (configs/improve/pusht.json), so
+    # that labelling 100 mostly failed rollouts (about 400 episodes, 40 % of the base's) fits a session.
+    max_per_run: int = 12
     # Fine-tuning from the current weights: 2500 steps (round 10's 1500 lengthened the path, round 10b's
     # 2500 on the same data shortened it, round 10c's 2000 more did not help), peak lr 1e-4 (run 7: a warm
     # restart at the preset's 2e-4 first undoes what was learned), bf16 on CPU.
@@ -180,6 +184,7 @@ class ImproveConfig(FanOut):
         }
         positive = {
             "round.hard + round.uniform": self.round.hard + self.round.uniform,
+            "round.max_per_run": self.round.max_per_run,
             "validation.hard + validation.uniform": self.validation.hard + self.validation.uniform,
             "base.episodes": self.base.episodes,
             "base.steps": self.base.steps,

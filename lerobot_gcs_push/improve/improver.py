@@ -229,6 +229,7 @@ class Improver:
             rollouts=[str(p) for p in self.rollouts(k) if (p / "runs.jsonl").is_file()],
             repo_id=self.repo(f"r{k}"),
             large_regret_m=self.cfg.round.large_regret_m,
+            max_per_run=self.cfg.round.max_per_run,
             seed=self.seed(k, 2),
             **self.cfg.fan_out(),
             resume=True,
