@@ -28,7 +28,8 @@ def curve_points(state: dict) -> list[dict]:
 
 
 def plot_curve(state: dict, path: Path) -> Path | None:
-    """Success with and without disturbances, time over GCS's and regret against hours; the run's stop
+    """Success with and without disturbances, time over GCS's and regret (or, for a slider that turns,
+    the goal's final coverage) against hours; the run's stop
     targets (`state["stop"]`, as its last invocation set them) drawn as dotted lines. None when no round is
     scored yet."""
     points = curve_points(state)
@@ -51,7 +52,8 @@ def plot_curve(state: dict, path: Path) -> Path | None:
             axes[0].plot(hours, [r.get(key) if r else None for r in rows], style, color=colors[name],
                          label=f"{name}, {key} disturbances")  # fmt: skip
         axes[1].plot(hours, [r.get("time_ratio") if r else None for r in rows], "-o", color=colors[name], label=name)
-        axes[2].plot(hours, [r.get("regret_mean") if r else None for r in rows], "-o", color=colors[name], label=name)
+        third = "regret_mean" if any(r and "regret_mean" in r for r in rows) else "coverage_mean"
+        axes[2].plot(hours, [r.get(third) if r else None for r in rows], "-o", color=colors[name], label=name)
     for key, name in (("hard_success", "hard"), ("uniform_success", "uniform")):
         if key in stop:
             axes[0].axhline(stop[key], color=colors[name], lw=0.8, ls=":")
@@ -61,7 +63,8 @@ def plot_curve(state: dict, path: Path) -> Path | None:
         axes[0].text(x, 1.05, f"r{p['round']}", ha="center", fontsize=8)
     axes[0].set(ylim=(0, 1.1), ylabel="success on the round's rollouts")
     axes[1].set(ylabel="mean success time / GCS's")
-    axes[2].set(ylabel="regret per run, mean (m)", ylim=(0, None))
+    covered = not any(p["scores"].get(n, {}).get("regret_mean") is not None for p in points for n in SETS)
+    axes[2].set(ylabel="final coverage of the goal, mean" if covered else "regret per run, mean (m)", ylim=(0, None))
     for ax in axes:
         ax.set_xlabel("stage hours when the policy became current")
         ax.grid(alpha=0.3)
@@ -87,7 +90,12 @@ def main(argv=None) -> None:
     for p in curve_points(state):
         cells = "; ".join(
             f"{k} {s.get('without', float('nan')):.3f} / {s.get('with', float('nan')):.3f}, "
-            f"{s.get('time_ratio', float('nan')):.2f}x, regret {s.get('regret_mean', float('nan')):.1f} m"
+            f"{s.get('time_ratio', float('nan')):.2f}x, "
+            + (
+                f"final coverage {s['coverage_mean']:.3f}"
+                if "coverage_mean" in s and "regret_mean" not in s
+                else f"regret {s.get('regret_mean', float('nan')):.1f} m"
+            )
             for k, s in p["scores"].items()
         )
         print(f"round {p['round']} at {p['hours']:.2f} h: {cells}")

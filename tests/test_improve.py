@@ -430,10 +430,10 @@ def test_pusht_rounds_time_the_policy_against_the_closed_loop_expert_on_gym_push
         out = Path(c.output_dir)
         out.mkdir(parents=True)
         recs = [  # the expert 10 s and 20 s; the policy 15 s, and a failure
-            {"policy": "gcs-closed-loop", "disturbances": False, "success": True, "sim_time_s": 10.0},
-            {"policy": "gcs-closed-loop", "disturbances": False, "success": True, "sim_time_s": 20.0},
-            {"policy": c.policies[1], "disturbances": False, "success": True, "sim_time_s": 15.0},
-            {"policy": c.policies[1], "disturbances": False, "success": False, "sim_time_s": 30.0},
+            {"policy": "gcs-closed-loop", "disturbances": False, "success": True, "sim_time_s": 10.0, "coverage": 1},
+            {"policy": "gcs-closed-loop", "disturbances": False, "success": True, "sim_time_s": 20.0, "coverage": 1},
+            {"policy": c.policies[1], "disturbances": False, "success": True, "sim_time_s": 15.0, "coverage": 0.96},
+            {"policy": c.policies[1], "disturbances": False, "success": False, "sim_time_s": 30.0, "coverage": 0.5},
         ]
         (out / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in recs))
 
@@ -446,7 +446,8 @@ def test_pusht_rounds_time_the_policy_against_the_closed_loop_expert_on_gym_push
     assert c.policies == ["gcs-closed-loop", cfg.policy] and not c.disturbances and c.timeout_s == 30.0
     assert not c.regret  # no cost-to-go through contact
     scores = improver.state.stages["r1.rollouts"]["scores"]
-    assert scores == {"uniform": {"without": 0.5, "time_ratio": 1.0}}  # 15 s over the expert's mean 15 s
+    # 15 s over the expert's mean 15 s; the policy's final coverage (0.96 + 0.5) / 2
+    assert scores == {"uniform": {"without": 0.5, "time_ratio": 1.0, "coverage_mean": pytest.approx(0.73)}}
     assert not improver.targets_met(1)  # 0.5 < 0.95
     with pytest.raises(ValueError, match="no hard families"):
         imp.ImproveConfig(env_id="gym_pusht/PushT-v0", train_config=cfg.train_config)

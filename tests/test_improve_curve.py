@@ -53,5 +53,16 @@ def test_the_curve_is_drawn_from_a_state_folder(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "round 1 at 2.00 h: hard 0.500 / 0.250, 1.50x, regret 9.0 m" in printed
     assert "round 2 at 4.50 h" in printed
+    # gym-pusht's rounds: no regret, the final coverage in its place (in the picture's third panel too)
+    pusht = {"uniform": {"without": 0.0, "time_ratio": float("inf"), "coverage_mean": 0.375}}
+    state = {"stages": {"r1.rollouts": {"done": True, "wall_s": 60.0, "scores": pusht}}}
+    (tmp_path / "state.json").write_text(json.dumps(state))
+    main([str(tmp_path)])
+    assert "round 1 at 0.00 h: uniform 0.000 / nan, infx, final coverage 0.375" in capsys.readouterr().out
+    without = {"stages": {"r1.rollouts": state["stages"]["r1.rollouts"] | {"scores": {"uniform": {"without": 0.0}}}}}
+    assert not np.array_equal(
+        matplotlib.image.imread(tmp_path / "curve.png"),
+        matplotlib.image.imread(plot_curve(without, tmp_path / "w.png")),
+    )
     with pytest.raises(SystemExit, match="does not exist"):
         main([str(tmp_path / "missing")])

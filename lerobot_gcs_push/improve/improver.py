@@ -175,7 +175,8 @@ class Improver:
 
     def rollout_scores(self, k: int) -> dict:
         """The current policy on round k's rollouts, per sampler: success without and with disturbances,
-        regret (the box), and mean success time over the GCS expert's on the same initial conditions."""
+        regret (the box) or final coverage (a slider that turns), and mean success time over the GCS
+        expert's on the same initial conditions."""
         import numpy as np
 
         from lerobot_gcs_push.evaluation import read_runs
@@ -197,6 +198,10 @@ class Improver:
             regrets = [r["regret"] for r in mine if r.get("regret") is not None]
             if regrets:
                 score["regret_mean"], score["regret_p95"] = float(np.mean(regrets)), float(np.percentile(regrets, 95))
+            # A slider that turns: the goal's final coverage, which moves while success is still nil.
+            covered = [r["coverage"] for r in mine if r.get("coverage") is not None and not r["disturbances"]]
+            if covered:
+                score["coverage_mean"] = float(np.mean(covered))
             out[folder.name.removeprefix("rollouts_")] = score
         return out
 
