@@ -49,6 +49,8 @@ def plot_curve(state: dict, path: Path) -> Path | None:
         if not any(rows):
             continue
         for key, style in (("without", "-o"), ("with", "--s")):
+            if not any(r and key in r for r in rows):  # gym-pusht's rounds run no disturbances
+                continue
             axes[0].plot(hours, [r.get(key) if r else None for r in rows], style, color=colors[name],
                          label=f"{name}, {key} disturbances")  # fmt: skip
         axes[1].plot(hours, [r.get("time_ratio") if r else None for r in rows], "-o", color=colors[name], label=name)
