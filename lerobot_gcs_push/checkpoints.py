@@ -20,6 +20,9 @@ from pathlib import Path
 MODEL_FILE = "model.safetensors"
 CONFIG_FILE = "config.json"
 TRAIN_CONFIG_FILE = "train_config.json"
+# A training partial's bookkeeping (its step), written only by `export_policy(..., step=)`: a policy copied
+# from a partial does not carry it, so it is never mistaken for a partial to resume.
+STEP_FILE = "step.json"
 DTYPES = ("float16", "bfloat16", "float32")
 
 
@@ -28,12 +31,13 @@ def is_pretrained_dir(path) -> bool:
     return (path / CONFIG_FILE).is_file() and (path / MODEL_FILE).is_file()
 
 
-def export_policy(src, dst, dtype: str = "float16", overwrite: bool = False) -> Path:
+def export_policy(src, dst, dtype: str = "float16", overwrite: bool = False, step: int | None = None) -> Path:
     """Write `src` (a `pretrained_model` directory) to `dst` with its floating-point weights in `dtype`.
 
     The processors' statistics and the config are copied unchanged, except that the config forgets the
     path it was fine-tuned from (a path on the machine that trained it) and its training-time `use_amp`.
-    `dst` appears whole or not at all: it is written beside itself and renamed into place.
+    `dst` appears whole or not at all: it is written beside itself and renamed into place. With `step`,
+    `dst` is a training partial and records it in STEP_FILE; a STEP_FILE in `src` is never copied.
     """
     import torch
     from safetensors.torch import load_file, save_file
@@ -56,7 +60,7 @@ def export_policy(src, dst, dtype: str = "float16", overwrite: bool = False) -> 
     staging.chmod(0o755)
     try:
         for f in src.iterdir():
-            if f.is_file() and f.name not in (MODEL_FILE, TRAIN_CONFIG_FILE):
+            if f.is_file() and f.name not in (MODEL_FILE, TRAIN_CONFIG_FILE, STEP_FILE):
                 shutil.copy2(f, staging / f.name)
         save_file(tensors, staging / MODEL_FILE, metadata={"format": "pt", "dtype": dtype})
         config = json.loads((src / CONFIG_FILE).read_text())
@@ -65,6 +69,8 @@ def export_policy(src, dst, dtype: str = "float16", overwrite: bool = False) -> 
         # a `use_amp` policy to bf16 on CPU. Fine-tuning turns it back on with --policy.use_amp=true.
         config["use_amp"] = False
         (staging / CONFIG_FILE).write_text(json.dumps(config, indent=4) + "\n")
+        if step is not None:
+            (staging / STEP_FILE).write_text(json.dumps({"step": int(step)}) + "\n")
         # The old directory steps aside before the new one moves in: a kill between the two moves leaves
         # the old policy whole at .<name>.old, never a half-written one at <name>.
         old = dst.with_name("." + dst.name + ".old")

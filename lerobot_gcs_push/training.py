@@ -19,7 +19,7 @@ import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from lerobot_gcs_push.checkpoints import export_policy, is_pretrained_dir
+from lerobot_gcs_push.checkpoints import STEP_FILE, export_policy, is_pretrained_dir
 from lerobot_gcs_push.files import atomic_path
 
 
@@ -60,9 +60,9 @@ def checkpoint_step(output_dir: Path) -> int:
 
 
 def partial_step(partial: Path | None) -> int:
-    if partial is None or not (partial / "step.json").is_file() or not is_pretrained_dir(partial):
+    if partial is None or not (partial / STEP_FILE).is_file() or not is_pretrained_dir(partial):
         return 0
-    return int(json.loads((partial / "step.json").read_text())["step"])
+    return int(json.loads((partial / STEP_FILE).read_text())["step"])
 
 
 def cosine_lr(step: int, steps: int, peak: float, warmup: int) -> float:
@@ -181,7 +181,4 @@ def _run(job: TrainJob, args: list[str], out: Path, offset: int, desc: str, tqdm
 
 def _export_partial(out: Path, partial: Path, step: int) -> None:
     # The step travels inside the exported folder, which appears whole or not at all.
-    src = out / "checkpoints" / "last" / "pretrained_model"
-    with atomic_path(src / "step.json") as tmp:
-        tmp.write_text(json.dumps({"step": step}) + "\n")
-    export_policy(src, partial, overwrite=True)
+    export_policy(out / "checkpoints" / "last" / "pretrained_model", partial, overwrite=True, step=step)

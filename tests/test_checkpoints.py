@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lerobot_gcs_push.checkpoints import MODEL_FILE, export_policy, is_pretrained_dir
+from lerobot_gcs_push.checkpoints import MODEL_FILE, STEP_FILE, export_policy, is_pretrained_dir
 
 SHIPPED = Path(__file__).resolve().parents[1] / "policies" / "diffusion_cpu"
 
@@ -44,6 +44,19 @@ def test_export_round_trip_is_exact_and_atomic(tmp_path):
     with pytest.raises(ValueError, match="dtype"):
         export_policy(SHIPPED, tmp_path / "int", dtype="int8")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fp16", "fp32"]  # no staging folder left
+
+
+def test_a_step_is_written_only_into_a_partial_and_never_copied_out_of_one(tmp_path):
+    """A training partial records its step; a policy exported from that partial does not, so it is
+    never taken for a partial to resume (training.partial_step reads the step from there)."""
+    from lerobot_gcs_push.training import partial_step
+
+    partial = export_policy(SHIPPED, tmp_path / "partial", step=1500)
+    assert json.loads((partial / STEP_FILE).read_text()) == {"step": 1500}
+    assert partial_step(partial) == 1500
+    policy = export_policy(partial, tmp_path / "policy")
+    assert not (policy / STEP_FILE).exists() and partial_step(policy) == 0
+    assert sorted(p.name for p in policy.iterdir()) == sorted(p.name for p in SHIPPED.iterdir())
 
 
 def test_the_shipped_policy_acts_through_lerobots_factory_as_it_is():

@@ -131,7 +131,6 @@ class Improver:
             progress_desc=f"{job} training",
         )
         export_policy(final, dst, overwrite=True)
-        (dst / "step.json").unlink(missing_ok=True)  # the partial's bookkeeping, not the policy's
         shutil.rmtree(self.state_dir / f"{job}.partial", ignore_errors=True)
 
     # -- a round ---------------------------------------------------------------------------------------
@@ -366,7 +365,6 @@ class Improver:
         if cfg.from_policy and not is_pretrained_dir(cfg.policy) and not shipped:
             print(f"starting from {cfg.from_policy}: copied to {cfg.policy}")
             export_policy(cfg.from_policy, cfg.policy, overwrite=True)
-            (Path(cfg.policy) / "step.json").unlink(missing_ok=True)  # a partial's bookkeeping
         # From nothing: a run that began so, or a new run with no policy. A run on its way whose policy
         # folder is missing is refused below, not trained again from nothing.
         if "base.demonstrations" in self.state.stages or (not self.state.stages and not is_pretrained_dir(cfg.policy)):
