@@ -449,6 +449,15 @@ def test_pusht_rounds_time_the_policy_against_the_closed_loop_expert_on_gym_push
     # 15 s over the expert's mean 15 s; the policy's final coverage (0.96 + 0.5) / 2
     assert scores == {"uniform": {"without": 0.5, "time_ratio": 1.0, "coverage_mean": pytest.approx(0.73)}}
     assert not improver.targets_met(1)  # 0.5 < 0.95
+    # validation: the uniform set alone (the hard one is empty), its own seed, the policy beside the candidate
+    asked.clear()
+    _pretrained(improver.candidate(1), 0.1)
+    improver.run_validation(1)
+    (c,) = asked
+    assert c.sampler == "uniform" and c.num_initial_conditions == 100 and c.runs == 1
+    assert c.seed == 7016 and c.policies == [cfg.policy, str(improver.candidate(1))]
+    assert Path(c.output_dir) == tmp_path / "w" / "r1" / "validation_uniform"
+    assert improver.validation_dirs(1) == [Path(c.output_dir)]
     with pytest.raises(ValueError, match="no hard families"):
         imp.ImproveConfig(env_id="gym_pusht/PushT-v0", train_config=cfg.train_config)
     with pytest.raises(ValueError, match="no disturbances"):

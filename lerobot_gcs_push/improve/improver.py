@@ -298,16 +298,20 @@ class Improver:
         if k > 1:  # each merge is a full copy: the previous one has served
             shutil.rmtree(self.home / self.repo(f"r{k - 1}_merged"), ignore_errors=True)
 
-    def validation_dirs(self, k: int) -> list[Path]:
+    def validation_sets(self, k: int) -> list[tuple[str, int, int, Path]]:
+        """Round k's validation sets that hold starts: (sampler, count, seed offset, output folder)."""
         v = self.cfg.validation
-        return [self.work / f"r{k}" / f"validation_{s}" for s, n in (("hard", v.hard), ("uniform", v.uniform)) if n]
+        sets = (("hard", self.cfg.hard_sampler, v.hard, 5), ("uniform", "uniform", v.uniform, 6))
+        return [(sampler, n, off, self.work / f"r{k}" / f"validation_{name}") for name, sampler, n, off in sets if n]
+
+    def validation_dirs(self, k: int) -> list[Path]:
+        return [out for *_, out in self.validation_sets(k)]
 
     def run_validation(self, k: int) -> None:
         from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate
 
         v = self.cfg.validation
-        sets = ((self.cfg.hard_sampler, v.hard, 5), ("uniform", v.uniform, 6))
-        for (sampler, n, off), out in zip(sets, self.validation_dirs(k)):
+        for sampler, n, off, out in self.validation_sets(k):
             evaluate(
                 EvaluateConfig(
                     policies=[self.cfg.policy, str(self.candidate(k))],
