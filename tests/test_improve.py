@@ -79,6 +79,42 @@ def test_a_candidate_without_success_never_ships_on_time():
         decide(_runs("old", 1, 6, 20.0, rng) + _runs("new", 1, 3, 20.0, rng), "old", "new")
 
 
+def test_without_a_success_on_either_side_the_candidate_ships_on_coverage_only_when_asked():
+    """Hand-computed: on four paired starts the current policy leaves 0, 0, 0.5, 0.2 of the goal covered and
+    the candidate 0.1, 0, 0.6, 0.1: means 0.175 and 0.2 (+0.025), higher on 2 starts, lower on 1."""
+
+    def runs(policy, coverages, success=False):
+        return [
+            {"policy": policy, "disturbances": False, "initial_condition_index": i, "run": 0, "seed": 100 + i,
+             "success": success and i == 0, "sim_time_s": 30.0, "coverage": c}
+            for i, c in enumerate(coverages)
+        ]  # fmt: skip
+
+    recs = runs("old", [0, 0, 0.5, 0.2]) + runs("new", [0.1, 0, 0.6, 0.1])
+    d = decide(recs, "old", "new", coverage_margin=0.02)
+    assert d.ship and "+0.025" in d.reason and "higher on 2 starts and lower on 1" in d.reason
+    assert d.current.coverage_mean == pytest.approx(0.175) and d.candidate.coverage_mean == pytest.approx(0.2)
+    assert not decide(recs, "old", "new", coverage_margin=0.03).ship  # +0.025 < 0.03
+    assert not decide(recs, "old", "new").ship  # off (the box's rule): no success, no ship
+    # a higher mean from one start, lower on three: kept
+    recs = runs("old", [0.1, 0.1, 0.1, 0]) + runs("new", [0, 0, 0, 0.9])
+    assert not decide(recs, "old", "new", coverage_margin=0.02).ship
+    # a success on one side: coverage is not asked
+    recs = runs("old", [0, 0, 0, 0], success=True) + runs("new", [0.9, 0.9, 0.9, 0.9])
+    assert not decide(recs, "old", "new", coverage_margin=0.02).ship
+    # unpaired starts and missing coverage are refused
+    recs = runs("old", [0, 0]) + runs("new", [0.5, 0.5])
+    recs[3]["seed"] = 7
+    with pytest.raises(ValueError, match="cannot be paired"):
+        decide(recs, "old", "new", coverage_margin=0.02)
+    recs = runs("old", [0, 0]) + runs("new", [0.5, 0.5])
+    del recs[0]["coverage"]
+    with pytest.raises(ValueError, match="no final coverage"):
+        decide(recs, "old", "new", coverage_margin=0.02)
+    with pytest.raises(ValueError, match="coverage_margin"):
+        decide(recs, "old", "new", coverage_margin=1.5)
+
+
 def _info(root: Path) -> dict:
     return json.loads((root / "meta" / "info.json").read_text())
 
@@ -458,8 +494,11 @@ def test_pusht_rounds_time_the_policy_against_the_closed_loop_expert_on_gym_push
     assert c.seed == 7016 and c.policies == [cfg.policy, str(improver.candidate(1))]
     assert Path(c.output_dir) == tmp_path / "w" / "r1" / "validation_uniform"
     assert improver.validation_dirs(1) == [Path(c.output_dir)]
+    assert cfg.validation.coverage_margin == 0.02  # fixed before round 2's validation
     with pytest.raises(ValueError, match="no hard families"):
         imp.ImproveConfig(env_id="gym_pusht/PushT-v0", train_config=cfg.train_config)
+    with pytest.raises(ValueError, match="coverage_margin needs a slider that turns"):
+        imp.ImproveConfig(train_config=cfg.train_config, validation=imp.ValidationConfig(coverage_margin=0.02))
     with pytest.raises(ValueError, match="no disturbances"):
         imp.ImproveConfig(
             env_id="gym_pusht/PushT-v0",

@@ -74,6 +74,9 @@ class ValidationConfig:
     # every test set after), or within the margin with a mean success time `time_gain` lower (round 10b).
     margin: int = 3
     time_gain: float = 0.05
+    # Where neither policy has a success (gym-pusht so far), ship on final coverage: the candidate's mean this
+    # much higher and higher on more paired starts than lower (`shipping.coverage_decision`). None: never.
+    coverage_margin: float | None = None
 
 
 @dataclass
@@ -207,6 +210,13 @@ class ImproveConfig(FanOut):
             raise ValueError(f"base.lr must be positive, got {self.base.lr}")
         if not 0.0 <= self.validation.time_gain < 1.0:
             raise ValueError(f"validation.time_gain must be a fraction in [0, 1), got {self.validation.time_gain}")
+        cm = self.validation.coverage_margin
+        if cm is not None and not 0.0 < cm < 1.0:
+            raise ValueError(f"validation.coverage_margin must be a fraction in (0, 1), or None, got {cm}")
+        if cm is not None and not scene.rotates:
+            raise ValueError(
+                f"validation.coverage_margin needs a slider that turns: {self.env_id}'s runs record no coverage"
+            )
         stages = "|".join(STAGES)
         if self.stop_after and not re.fullmatch(
             rf"base\.(demonstrations|train)|r[1-9][0-9]*\.({stages})", self.stop_after

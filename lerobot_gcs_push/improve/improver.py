@@ -341,7 +341,14 @@ class Improver:
                 self.run_validation(k)  # a fresh machine: seeded, so made again the same
             recs = read_validation(self.validation_dirs(k))
             v = self.cfg.validation
-            decision = decide(recs, self.cfg.policy, str(self.candidate(k)), margin=v.margin, time_gain=v.time_gain)
+            decision = decide(
+                recs,
+                self.cfg.policy,
+                str(self.candidate(k)),
+                margin=v.margin,
+                time_gain=v.time_gain,
+                coverage_margin=v.coverage_margin,
+            )
             winner = str(self.candidate(k)) if decision.ship else self.cfg.policy
             rec["decision"] = decision.to_json()
             rec["winner_by_set"] = {
