@@ -442,8 +442,10 @@ def test_improve_from_nothing_resumes_after_kill_9_inside_each_stage(tmp_path):
 def test_pusht_rounds_time_the_policy_against_the_closed_loop_expert_on_gym_pushts_resets(tmp_path, monkeypatch):
     """configs/improve/pusht.json as `gcs-push improve --config_path` loads it: the rounds' rollouts ask
     `evaluate` for gym-pusht's own resets (no hard families, no disturbances, the env's 30 s), the policy
-    beside the closed-loop expert, and score the policy's mean success time over the expert's by hand."""
+    beside the closed-loop expert, and score the policy's mean success time over the expert's by hand; the
+    validation runs the one set that holds starts, and the decision ships on coverage where none succeeds."""
     import draccus
+    from safetensors.torch import load_file
 
     import lerobot_gcs_push.evaluation as ev
     import lerobot_gcs_push.improve as imp
@@ -494,6 +496,21 @@ def test_pusht_rounds_time_the_policy_against_the_closed_loop_expert_on_gym_push
     assert c.seed == 7016 and c.policies == [cfg.policy, str(improver.candidate(1))]
     assert Path(c.output_dir) == tmp_path / "w" / "r1" / "validation_uniform"
     assert improver.validation_dirs(1) == [Path(c.output_dir)]
+    # decision: neither succeeds; the config's coverage_margin ships the candidate that covers more
+    # (0.175 -> 0.2 on four paired starts, higher on 2, lower on 1), and its weights replace the policy's
+    cov = {cfg.policy: [0, 0, 0.5, 0.2], str(improver.candidate(1)): [0.1, 0, 0.6, 0.1]}
+    recs = [
+        {"policy": p, "disturbances": False, "initial_condition_index": i, "run": 0, "seed": i, "success": False,
+         "sim_time_s": 30.0, "coverage": x}
+        for p, xs in cov.items() for i, x in enumerate(xs)
+    ]  # fmt: skip
+    (Path(c.output_dir) / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in recs))
+    improver.state.stages["r1.decision"] = {}
+    improver.run_decision(1)
+    (r1,) = improver.state.rounds
+    assert r1["shipped"] and "neither has a success" in r1["decision"]["reason"]
+    assert load_file(Path(cfg.policy) / "model.safetensors")["w"].float().tolist() == pytest.approx([0.1, 0.1], 1e-3)
+    assert not improver.candidate(1).exists()
     assert cfg.validation.coverage_margin == 0.02  # fixed before round 2's validation
     with pytest.raises(ValueError, match="no hard families"):
         imp.ImproveConfig(env_id="gym_pusht/PushT-v0", train_config=cfg.train_config)
