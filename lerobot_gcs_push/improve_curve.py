@@ -9,6 +9,7 @@ initial conditions, GCS beside) placed at the stage hours when the policy they m
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -42,7 +43,7 @@ def plot_curve(state: dict, path: Path) -> Path | None:
     import matplotlib.pyplot as plt
 
     hours = [p["hours"] for p in points]
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), sharex=True)
     colors = {"hard": "tab:red", "uniform": "tab:blue"}
     for name in SETS:
         rows = [p["scores"].get(name) for p in points]
@@ -65,6 +66,10 @@ def plot_curve(state: dict, path: Path) -> Path | None:
         axes[0].text(x, 1.05, f"r{p['round']}", ha="center", fontsize=8)
     axes[0].set(ylim=(0, 1.1), ylabel="success on the round's rollouts")
     axes[1].set(ylabel="mean success time / GCS's")
+    ratios = [p["scores"].get(n, {}).get("time_ratio", math.inf) for p in points for n in SETS]
+    if not any(math.isfinite(r) for r in ratios):  # gym-pusht's first rounds: an empty panel would say nothing
+        axes[1].text(0.5, 0.5, "no success yet:\nno time to compare", ha="center", va="center",
+                     transform=axes[1].transAxes, color="0.4")  # fmt: skip
     covered = not any(p["scores"].get(n, {}).get("regret_mean") is not None for p in points for n in SETS)
     axes[2].set(ylabel="final coverage of the goal, mean" if covered else "regret per run, mean (m)", ylim=(0, None))
     for ax in axes:
