@@ -1,6 +1,6 @@
 """`make bench`: every benchmark in one run, printed and saved to results/bench.json.
 
-    python -m benchmarks.run [--only env,planner,rotation,rotation_tee,dataset,train,ray] [--quick]
+    python -m benchmarks.run [--only env,planner,rotation,rotation_tee,dataset,pusht,train,ray] [--quick]
 
 Medians and ratios come from one run on this machine; compare numbers from the same run only.
 """
@@ -29,6 +29,8 @@ TARGETS = {
     "planner.fresh_planner_s": ("<=", 1.0),
     "planner.relaxation_within_1pct_frac": (">=", 0.95),
     "dataset.demonstrations_per_min": (">=", 50.0),
+    # Issue 47: gym-pusht demonstrations planned through contact.
+    "pusht.demonstrations_per_hour": (">=", 1000.0),
     # Issue 32, the rotating box: the planner through contact.
     "rotation.plan_median_s": ("<=", 0.5),
     "rotation.gap_median": ("<=", 0.03),
@@ -48,7 +50,7 @@ TARGETS = {
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--only", default="env,planner,rotation,rotation_tee,dataset,train,ray")
+    ap.add_argument("--only", default="env,planner,rotation,rotation_tee,dataset,pusht,train,ray")
     ap.add_argument("--quick", action="store_true", help="smaller samples (a smoke run, not for reporting)")
     ap.add_argument("--out", default="results/bench.json")
     args = ap.parse_args(argv)
@@ -68,6 +70,10 @@ def main(argv=None) -> int:
             from benchmarks import dataset_bench as mod
 
             res = mod.run(episodes=10 if args.quick else 100)
+        elif name == "pusht":
+            from benchmarks import dataset_bench as mod
+
+            res = mod.run_pusht(episodes=10 if args.quick else 100)
         elif name == "train":
             from benchmarks import train_bench as mod
 
