@@ -12,7 +12,8 @@ Replays the first EPISODES (default 1000) demonstrations of `demos/seed4800-4803
 `obs_type="environment_state_agent_pos"` (each must end at its success, as recorded), trains STEPS
 (default 20000) of batch 64 on one thread, and rolls the policy out on EVAL_N (default 50) of gym-pusht's
 own resets, seeds EVAL_SEED.. (default 9970, used by no choice); success and max coverage at 5000-step
-intervals and at the end, written to outputs/state_policy/result.json.
+intervals and at the end, written to outputs/state_policy/result.json (the run of 2026-12-06 with the
+defaults: `state_policy.json` beside this file).
 """
 
 from __future__ import annotations
