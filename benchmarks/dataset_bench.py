@@ -29,12 +29,11 @@ def run_pusht(episodes: int = 100, workers: int = 2, seed: int = PUSHT_SEED) -> 
     resets (issue 47's target: 1000 an hour on 2 cores). The T's relaxation is compiled first, outside the
     time, as a machine's first plan does once and caches."""
     from lerobot_gcs_push.expert import make_planner
+    from lerobot_gcs_push.pusht_env import GYM_PUSHT_ID
     from lerobot_gcs_push.registration import SCENES
 
-    make_planner(SCENES["gym_pusht/PushT-v0"]).warm_up()
-    report = _generate(
-        env_id="gym_pusht/PushT-v0", episodes=episodes, seed=seed, repo_id="bench/gcs_pusht", workers=workers
-    )
+    make_planner(SCENES[GYM_PUSHT_ID]).warm_up()
+    report = _generate(env_id=GYM_PUSHT_ID, episodes=episodes, seed=seed, repo_id="bench/gcs_pusht", workers=workers)
     return {
         "episodes": float(report.episodes),
         "workers": float(workers),

@@ -29,17 +29,21 @@ import gymnasium as gym
 import numpy as np
 import torch
 
-from lerobot_gcs_push.pusht_frame import reset_to_state
+from lerobot_gcs_push.pusht_env import GYM_PUSHT_ID, GYM_PUSHT_STEPS
+from lerobot_gcs_push.pusht_frame import ARENA_PX, reset_to_state
 
 HERE = Path(__file__).parent
-LISTS = [HERE / "demos" / f"seed{s}.json" for s in (4800, 4801, 4802, 4803)]
+sys.path.insert(0, str(HERE))
+from count_table import SEEDS  # noqa: E402  (the first pool, in its order: base 1000's lists)
+
+LISTS = [HERE / "demos" / f"seed{s}.json" for s in SEEDS]
 OUT = Path("outputs/state_policy")
 N_OBS, HORIZON, N_ACTION = 2, 16, 8
-SCALE = 512.0  # gym-pusht's pixels: every input and output mapped from [0, 512] to [-1, 1]
+SCALE = ARENA_PX  # every input and output mapped from gym-pusht's [0, 512] px to [-1, 1]
 
 
 def make_env():
-    return gym.make("gym_pusht/PushT-v0", obs_type="environment_state_agent_pos", max_episode_steps=300)
+    return gym.make(GYM_PUSHT_ID, obs_type="environment_state_agent_pos", max_episode_steps=GYM_PUSHT_STEPS)
 
 
 def observe(obs) -> np.ndarray:
