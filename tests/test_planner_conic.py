@@ -155,6 +155,44 @@ def test_the_cache_tells_graphs_apart(compilations, tmp_path):
     assert other.plan(box, finger).cost > GcsPlanner(SCENE).plan(box, finger).cost + 0.1
 
 
+def _compile_slowly(root: str, builds: str, out) -> None:
+    """A process's `cached` call whose build takes a second and leaves a line in `builds`."""
+    import os
+    import time
+
+    from lerobot_gcs_push.planner.conic import CACHE_ENV, cached
+
+    os.environ[CACHE_ENV] = root
+
+    def build():
+        with open(builds, "a") as f:
+            f.write(f"{os.getpid()}\n")
+        time.sleep(1.0)
+        x, p = cp.Variable(), cp.Parameter()
+        return ParametricConic(cp.Problem(cp.Minimize(x), [x >= p]), [p], {"x": x})
+
+    out.put(cached("lock-test", b"one program", [], build).at(np.array([2.0])).b.tolist())
+
+
+def test_processes_that_need_the_same_program_compile_it_once(tmp_path):
+    """Two processes started together on an empty cache (two `generate` workers on a fresh machine, each
+    of whose T compiles peaks near 12 GB): one builds, the other waits and reads its file."""
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("fork")
+    out, builds = ctx.Queue(), tmp_path / "builds.txt"
+    procs = [ctx.Process(target=_compile_slowly, args=(str(tmp_path), str(builds), out)) for _ in range(2)]
+    for proc in procs:
+        proc.start()
+    results = [out.get(timeout=60) for _ in procs]
+    for proc in procs:
+        proc.join(timeout=60)
+        assert proc.exitcode == 0
+    assert len(builds.read_text().split()) == 1
+    assert results[0] == results[1]
+    assert len(list(tmp_path.glob("lock-test-*.npz"))) == 1
+
+
 def test_semidefinite_program_and_its_unpacked_values_match_cvxpy(tmp_path):
     """A small SDP with a symmetric matrix variable, a constant in the objective and parameters in A, b
     and c: the conic data taken once (and again from its file), evaluated at a new theta and solved by

@@ -324,21 +324,54 @@ def cached(
     h.update(cp.__version__.encode())
     root = os.environ[CACHE_ENV] if CACHE_ENV in os.environ else str(Path.home() / ".cache" / "lerobot_gcs_push")
     path = Path(root) / f"{name}-{h.hexdigest()[:24]}.npz" if root else None
-    if path is not None and path.exists():
-        try:
-            data = ParametricConic.load(path)
-            if check is None or check(data):
-                return data
-        except Exception:  # truncated by a full disk, say: zipfile and numpy raise errors of their own
-            pass
-        with contextlib.suppress(OSError):
-            path.unlink()
-    data = build()
-    if path is not None:
-        with contextlib.suppress(OSError):  # a read-only home: no cache, only a slower start
-            path.parent.mkdir(parents=True, exist_ok=True)
-            data.save(path)
+    data = _read(path, check)
+    if data is not None:
+        return data
+    # One process builds; the others wait and read its file. The T's compile peaks near 12 GB: two
+    # `generate` workers compiling it at once on a fresh machine were killed for memory (24 GiB).
+    with _exclusive(path):
+        data = _read(path, check)
+        if data is not None:
+            return data
+        data = build()
+        if path is not None:
+            with contextlib.suppress(OSError):  # a read-only home: no cache, only a slower start
+                data.save(path)
     return data
+
+
+def _read(path: Path | None, check) -> ParametricConic | None:
+    """The data kept at `path` if it is there and passes `check`; a file that does not is removed."""
+    if path is None or not path.exists():
+        return None
+    try:
+        data = ParametricConic.load(path)
+        if check is None or check(data):
+            return data
+    except Exception:  # truncated by a full disk, say: zipfile and numpy raise errors of their own
+        pass
+    with contextlib.suppress(OSError):
+        path.unlink()
+    return None
+
+
+@contextlib.contextmanager
+def _exclusive(path: Path | None):
+    """An exclusive lock on `path`'s lock file while the block runs (none without a cache, where locks
+    cannot be taken, or where the directory cannot be written)."""
+    try:
+        import fcntl
+
+        path.parent.mkdir(parents=True, exist_ok=True)
+        lock = open(path.with_name(path.name + ".lock"), "a")  # noqa: SIM115 (held across the yield)
+    except (ImportError, AttributeError, OSError):  # no fcntl (Windows), no path, a read-only cache
+        yield
+        return
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield
+    finally:
+        lock.close()  # releases the lock
 
 
 def _entries(A) -> tuple[np.ndarray, np.ndarray]:
