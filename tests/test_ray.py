@@ -110,20 +110,21 @@ def _assert_each_episode_once(root: Path) -> None:
 
 @pytest.mark.slow
 def test_ray_and_process_backends_write_the_same_dataset(tmp_path, cluster, reference):
-    """2 Ray actors and shards of 2 against 1 process and one shard: the same frames, images and metadata."""
+    """2 Ray actors and shards of at most 2 against 1 process and one shard: the same frames, images and
+    metadata. The shards are [0, 2), then a worker's share of the 2 missing, [2, 3) and [3, 4)."""
     report = generate(_cfg(tmp_path, "ray", backend="ray", workers=2, shard_size=2))
-    assert report.shards == 2 and report.episodes == N
+    assert report.shards == 3 and report.episodes == N
     _assert_same_dataset(Path(report.root), reference)
     _assert_each_episode_once(Path(report.root))
 
 
 @pytest.mark.slow
 def test_a_worker_killed_mid_shard_loses_and_duplicates_nothing(tmp_path, cluster, reference):
-    """The worker dies after the first episode of the shard [2, 4): Ray restarts it and runs the shard again."""
-    trigger = CRASH_DIR / "episode_3"
+    """The worker dies after the first episode of the shard [0, 2): Ray restarts it and runs the shard again."""
+    trigger = CRASH_DIR / "episode_1"
     trigger.touch()
     report = generate(_cfg(tmp_path, "crash", backend="ray", workers=2, shard_size=2))
-    assert not trigger.exists(), "the worker never reached episode 3"
+    assert not trigger.exists(), "the worker never reached episode 1"
     _assert_same_dataset(Path(report.root), reference)
     _assert_each_episode_once(Path(report.root))
 

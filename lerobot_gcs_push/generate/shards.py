@@ -4,6 +4,7 @@ a Ray actor), written as a LeRobotDataset of its own; and the driver's side, whi
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import time
@@ -158,8 +159,8 @@ def _run_shards(
 
     The dataset is the first `episodes` successful rollouts in index order (fewer if `frames` are reached
     first), whatever the timing. The initial conditions in flight never outnumber the successes still
-    missing, so no rollout past the last one needed is started. A new shard ends where a finished one
-    begins, so that one is reused as it is.
+    missing, so no rollout past the last one needed is started, and a shard takes at most a worker's share
+    of them. A new shard ends where a finished one begins, so that one is reused as it is.
     """
     kept: dict[int, dict] = {}
     running: dict[int, int] = {}  # start -> stop
@@ -193,8 +194,11 @@ def _run_shards(
                 continue
             if old is not None:  # from a run that asked for more episodes: it may hold more than are missing
                 shutil.rmtree(shard_path(shards, frontier))
+            # Near the end a shard takes no more than a worker's share of what is missing, so that every
+            # worker has some of it: in shards of 10, 10 episodes on 2 workers ran on one.
             stop = min(
                 frontier + cfg.shard_size,
+                frontier + max(1, math.ceil(missing() / cfg.workers)),
                 frontier + missing(),
                 min((start for start in finished if start > frontier), default=len(ics)),
             )
