@@ -198,7 +198,7 @@ def _run_shards(
             # worker has some of it: in shards of 10, 10 episodes on 2 workers ran on one.
             stop = min(
                 frontier + cfg.shard_size,
-                frontier + max(1, math.ceil(missing() / cfg.workers)),
+                frontier + math.ceil(missing() / cfg.workers),
                 frontier + missing(),
                 min((start for start in finished if start > frontier), default=len(ics)),
             )

@@ -359,12 +359,15 @@ def _read(path: Path | None, check) -> ParametricConic | None:
 def _exclusive(path: Path | None):
     """An exclusive lock on `path`'s lock file while the block runs (none without a cache, where locks
     cannot be taken, or where the directory cannot be written)."""
+    if path is None:
+        yield
+        return
     try:
         import fcntl
 
         path.parent.mkdir(parents=True, exist_ok=True)
         lock = open(path.with_name(path.name + ".lock"), "a")  # noqa: SIM115 (held across the yield)
-    except (ImportError, AttributeError, OSError):  # no fcntl (Windows), no path, a read-only cache
+    except (ImportError, OSError):  # no fcntl (Windows), a read-only cache
         yield
         return
     try:
