@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from lerobot_gcs_push.contact import ContactPlanner
-from lerobot_gcs_push.contact.relaxation import CERTIFY_TOL, certify, project_dual, solve_with_dual
+from lerobot_gcs_push.contact.certificate import CERTIFY_TOL, certify, project_dual, solve_with_dual
 from lerobot_gcs_push.planning import FREE, PUSH, PlanningError
 from lerobot_gcs_push.scene import Scene
 
@@ -243,13 +243,42 @@ def test_a_dual_point_is_checked_not_taken_on_the_solvers_word(planner):
     assert np.allclose(project_dual(conic, bad)[start : start + len(rows)], 0.0)
 
 
+def test_a_solve_the_certificate_refuses_is_repeated_with_refinement(planner, monkeypatch):
+    """The first solve skips Clarabel's iterative refinement; where its dual point certifies nothing, the
+    same program is solved again with it, and that solve's bound is the one reported: the certificate, not
+    the setting, decides."""
+    import lerobot_gcs_push.contact.certificate as certificate
+
+    relax = planner.relaxation
+    pose, finger = STARTS[0]
+    p, q, goal, allow = planner.query(pose, finger)
+    relax.set_query(p, q, goal, allow, planner.window(p, goal))
+    conic = relax.data.at(np.concatenate([np.ravel(np.asarray(v.value, float), order="F") for v in relax.params]))
+    calls, real_solve, real_certify = [], certificate.solve_with_dual, certificate.certify
+
+    def solve(conic, **settings):
+        calls.append(settings)
+        return real_solve(conic, **settings)
+
+    def refuse_the_first(conic, x, z, tol=CERTIFY_TOL):
+        return (None, 1.0) if len(calls) == 1 else real_certify(conic, x, z, tol)
+
+    monkeypatch.setattr(certificate, "solve_with_dual", solve)
+    monkeypatch.setattr(certificate, "certify", refuse_the_first)
+    status, x, z, bound, residual = certificate.solve_certified(conic)
+    assert calls == [{"refine": False}, {}]
+    refined = real_certify(conic, *real_solve(conic)[1:])
+    assert bound is not None and bound == pytest.approx(refined[0], rel=1e-9) and residual <= CERTIFY_TOL
+    assert bound <= float(conic.c @ x + conic.d)
+
+
 def test_an_uncertified_relaxation_gives_a_plan_that_says_so(monkeypatch, capsys):
     """A solve whose dual point cannot be vouched for: the plan carries no bound (None, not -inf or the
     solver's unchecked number), its gap is None, and the command line prints 'uncertified'."""
-    import lerobot_gcs_push.contact.relaxation as relaxation
+    import lerobot_gcs_push.contact.certificate as certificate
     from lerobot_gcs_push.cli import main
 
-    monkeypatch.setattr(relaxation, "certify", lambda conic, x, z, tol=CERTIFY_TOL: (None, 1.0))
+    monkeypatch.setattr(certificate, "certify", lambda conic, x, z, tol=CERTIFY_TOL: (None, 1.0))
     pose, finger = STARTS[0]
     plan = ContactPlanner(SCENE).plan(pose, finger)
     assert plan.lower_bound is None and not plan.certified and plan.gap is None

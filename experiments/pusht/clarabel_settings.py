@@ -5,7 +5,7 @@
 Builds the planner the PushT expert uses, sets the relaxation's query for the first N resets of SEED
 (default 6 of 9412), then solves each conic program with each variant twice and prints, per variant, the
 median CPU seconds of a solve (process time, so a busy machine changes it little), the iterations, the
-statuses and the certified bounds (`relaxation.certify`, the bound the planner reports).
+statuses and the certified bounds (`certificate.certify`, the bound the planner reports).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import clarabel
 import numpy as np
 import scipy.sparse as sp
 
-from lerobot_gcs_push.contact.relaxation import certify
+from lerobot_gcs_push.contact.certificate import certify
 from lerobot_gcs_push.expert import make_planner
 from lerobot_gcs_push.registration import SCENES, sample_starts
 

@@ -11,7 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from lerobot_gcs_push.contact import ContactPlanner
-from lerobot_gcs_push.contact.relaxation import certify
+from lerobot_gcs_push.contact.certificate import certify
 from lerobot_gcs_push.pusht_env import pusht_scene, reset_states
 
 planner = ContactPlanner(pusht_scene())

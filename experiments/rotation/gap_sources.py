@@ -81,7 +81,7 @@ def main() -> None:
                     v = np.r_[1.0, heading]
                     put(vals, fr.moments, np.outer(v, v))
             bounds.append(conic.fix(vals).solve().dual_value)
-        # An uncertified bound (None: relaxation.certify refused the dual point) prints as nan.
+        # An uncertified bound (None: certificate.certify refused the dual point) prints as nan.
         gaps = [(best.cost - b) / best.cost if b is not None else float("nan") for b in [res.bound, *bounds]]
         plan = _plan_terms(p, best)
         print(

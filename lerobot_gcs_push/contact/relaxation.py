@@ -10,7 +10,6 @@ the 2-3 s cvxpy spends building the program's expressions (whose variables recei
 
 from __future__ import annotations
 
-import functools
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +17,7 @@ from pathlib import Path
 import cvxpy as cp
 import numpy as np
 
+from lerobot_gcs_push.contact.certificate import CLARABEL_STATUS, solve_certified
 from lerobot_gcs_push.contact.face_contact import (
     MAX_STEP_ROTATION,
     ArcParameters,
@@ -27,17 +27,12 @@ from lerobot_gcs_push.contact.face_contact import (
 from lerobot_gcs_push.contact.graph import ContactGraph
 from lerobot_gcs_push.contact.model import PushModel, reachable_windows
 from lerobot_gcs_push.contact.non_collision import RelaxedNonCollision, free_regions
-from lerobot_gcs_push.planner.conic import Conic, ParametricConic, cached
+from lerobot_gcs_push.planner.conic import ParametricConic, cached
 
 # The modules that write the program (the planner's rounding and expert do not change it).
 PROGRAM_SOURCES = [
     str(Path(__file__).with_name(f"{m}.py")) for m in ("relaxation", "face_contact", "non_collision", "model", "graph")
 ]
-CLARABEL_STATUS = {"Solved": "optimal", "AlmostSolved": "optimal_inaccurate"}
-# The largest dual residual |A'z + c|_inf / max(1, |c|_inf) (z projected onto the dual cone) a bound is
-# certified at. Measured on 6 rotating-box and 4 T queries: 4e-7 to 3e-6, whether Clarabel said Solved or
-# AlmostSolved (most say AlmostSolved; Clarabel's own test scales by |A'z| too, so Solved is no check here).
-CERTIFY_TOL = 1e-5
 
 
 def pose_vector(pose) -> np.ndarray:
@@ -52,7 +47,7 @@ def pose_moments(pose) -> np.ndarray:
 
 @dataclass
 class RelaxationResult:
-    bound: float | None  # a certified lower bound on every plan's cost (`certify`), None: uncertified
+    bound: float | None  # a certified lower bound on every plan's cost (`certificate.certify`), None: uncertified
     status: str
     solve_time_s: float
     contact_flow: np.ndarray
@@ -236,15 +231,12 @@ class GraphRelaxation:
         t0 = time.perf_counter()
         theta = np.concatenate([np.ravel(np.asarray(p.value, float), order="F") for p in self.params])
         conic = self.data.at(theta)
-        status, x, z = solve_with_dual(conic)
-        # About 1 solve in 30 stops on a numerical error; a looser tolerance clears it.
-        if status not in CLARABEL_STATUS:
-            status, x, z = solve_with_dual(conic, tol=1e-6)
-        if status not in CLARABEL_STATUS:
-            raise cp.error.SolverError(f"Clarabel returned status {status!r} on the contact relaxation")
+        try:
+            status, x, z, bound, residual = solve_certified(conic)
+        except ValueError as err:
+            raise cp.error.SolverError(f"{err} on the contact relaxation") from None
         for v, value in zip(self.variables, self.data.values(x), strict=True):
             v.value = v.project(value)
-        bound, residual = certify(conic, x, z)
         dt = time.perf_counter() - t0
         return RelaxationResult(
             bound=bound,
@@ -256,91 +248,6 @@ class GraphRelaxation:
             relaxation=self,
             dual_residual=residual,
         )
-
-
-def solve_with_dual(conic: Conic, tol: float = 1e-7) -> tuple[str, np.ndarray, np.ndarray]:
-    """Clarabel on the conic data (as `Conic.solve`, whose solution keeps no dual point): its status, the
-    primal point x and the dual point z."""
-    import clarabel
-    import scipy.sparse as sp
-
-    n = len(conic.c)
-    settings = clarabel.DefaultSettings()
-    settings.verbose = False
-    settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = tol
-    sol = clarabel.DefaultSolver(sp.csc_matrix((n, n)), conic.c, conic.A, conic.b, conic.cones(), settings).solve()
-    return str(sol.status), np.asarray(sol.x, float), np.asarray(sol.z, float)
-
-
-def project_dual(conic: Conic, z: np.ndarray) -> np.ndarray:
-    """z projected onto the dual cone K* (K is self-dual but for the zero cone, whose dual is free):
-    nonnegative entries clipped, each second-order cone's block and each PSD block (the upper triangle
-    column by column, off-diagonals times sqrt 2) projected exactly; cones of one size at once."""
-    z = np.array(z, float)
-    i = conic.zero
-    z[i : i + conic.nonneg] = np.maximum(z[i : i + conic.nonneg], 0.0)
-    i += conic.nonneg
-    cones = [("soc", k, k) for k in conic.soc] + [("psd", n, n * (n + 1) // 2) for n in conic.psd]
-    starts = i + np.concatenate([[0], np.cumsum([length for _, _, length in cones])[:-1]]).astype(int)
-    for cone in set(cones):
-        at = np.array([s for s, c in zip(starts, cones) if c == cone], int)
-        kind, n, length = cone
-        idx = at[:, None] + np.arange(length)[None, :]
-        z[idx] = _project_soc(z[idx]) if kind == "soc" else _project_psd(z[idx], n)
-    return z
-
-
-def _project_soc(blocks: np.ndarray) -> np.ndarray:
-    """Each row (t, v) onto {|v| <= t}: itself inside, the apex below the polar cone, else the boundary."""
-    t, v = blocks[:, 0], blocks[:, 1:]
-    norm = np.linalg.norm(v, axis=1)
-    out = blocks.copy()
-    outside = norm > t
-    scale = np.maximum((t + norm) / 2, 0.0)
-    out[outside, 0] = scale[outside]
-    ratio = np.divide(scale, norm, out=np.zeros_like(norm), where=norm > 0)
-    out[outside, 1:] = v[outside] * ratio[outside, None]
-    return out
-
-
-def _project_psd(blocks: np.ndarray, n: int) -> np.ndarray:
-    """Each row (a packed n x n symmetric matrix) onto the PSD cone: negative eigenvalues set to 0."""
-    rows, cols = _triangle(n)
-    scale = np.where(rows != cols, np.sqrt(2), 1.0)
-    m = np.zeros((len(blocks), n, n))
-    m[:, rows, cols] = blocks / scale
-    m[:, cols, rows] = blocks / scale
-    w, u = np.linalg.eigh(m)
-    bad = w[:, 0] < 0
-    out = blocks.copy()
-    if bad.any():
-        fixed = np.einsum("bij,bj,bkj->bik", u[bad], np.maximum(w[bad], 0.0), u[bad])
-        out[bad] = fixed[:, rows, cols] * scale
-    return out
-
-
-@functools.cache
-def _triangle(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Row and column of each entry of a packed n x n PSD cone: the upper triangle, column by column."""
-    return tuple(np.array([(r, c) for c in range(n) for r in range(c + 1)]).T)
-
-
-def certify(conic: Conic, x: np.ndarray, z: np.ndarray, tol: float = CERTIFY_TOL) -> tuple[float | None, float]:
-    """(lower bound, dual residual) from a solve's dual point z, checked rather than taken on the solver's
-    word: z is projected onto the dual cone (so z.s >= 0 for every slack s in K), then for every feasible
-    x, c.x + d = d - b.z + (A'z + c).x + z.s >= d - b.z + r.x with r = A'z + c, the dual residual. Clarabel's
-    own dual objective takes r.x as 0; here r is measured and its term bounded by |r|.(|x*| + 1), x* the
-    solution found (this assumes the optimum's entries within |x*_i| + 1 of 0: the relaxation's variables are
-    flows <= 1 and perspective copies within the workspace; the term measured 1e-4 of the bound on the box,
-    6e-4 on the T). tests/test_contact_graph_global.py checks the bound against SCIP's global optima.
-    A residual above `tol` (relative to the cost's scale) certifies nothing: the bound is None."""
-    zp = project_dual(conic, z)
-    r = conic.c + conic.A.T @ zp
-    residual = float(np.max(np.abs(r), initial=0.0) / max(1.0, float(np.max(np.abs(conic.c), initial=0.0))))
-    if not np.isfinite(residual) or residual > tol or not np.all(np.isfinite(x)):
-        return None, residual
-    bound = conic.d - float(conic.b @ zp) - float(np.abs(r) @ (np.abs(x) + 1.0))
-    return (float(bound), residual) if np.isfinite(bound) else (None, residual)
 
 
 def _key(settings: tuple) -> bytes:
