@@ -57,7 +57,9 @@ def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=N
     `planner` shares one planner between experts (it is costly to build)."""
     config = config or ExpertConfig()
     planner = planner or make_planner(scene, config.method)
-    expert = PlanExpert(planner, fps, config, speeds_for(scene), TURNING_RULE if scene.rotates else BOX_RULE)
+    rule = TURNING_RULE if scene.rotates else BOX_RULE
+    # gym-pusht's agent starts anywhere, far from the T: planned from near it first (`PlanExpert._plan`).
+    expert = PlanExpert(planner, fps, config, speeds_for(scene), rule, stage_first=scene.frame is not None)
     if scene.frame is not None:
         from lerobot_gcs_push.pusht_agent import PixelActions
 

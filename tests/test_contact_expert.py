@@ -19,6 +19,7 @@ from lerobot_gcs_push.evaluation import read_runs
 from lerobot_gcs_push.registration import SCENES, SE2_ENV_ID, TEE_ENV_ID
 
 SE2 = SCENES[SE2_ENV_ID]
+SE2_PLANNER = ContactPlanner(SE2)
 
 
 def test_a_point_projects_to_the_nearest_point_of_a_piece_found_by_brute_force():
@@ -302,6 +303,77 @@ def test_a_start_with_no_plan_is_a_failed_run_not_a_crash(monkeypatch):
     assert res["failed_replans"] == 1 and len(actions) == 10
     np.testing.assert_allclose(actions, np.tile(finger, (len(actions), 1)))  # held where it started
     np.testing.assert_allclose(res["slider_pose_final"], start, atol=1e-6)  # nothing pushed it
+
+
+def test_stage_first_plans_a_far_finger_from_the_staging_point():
+    """gym-pusht's expert (`stage_first`, its agent starting anywhere) makes a far finger's plan from the
+    staging point first, the finger's own place next; a finger within reach plans from where it is. The
+    other scenes' experts plan from the finger first."""
+    from lerobot_gcs_push.expert import ExpertConfig, make_expert
+    from lerobot_gcs_push.planning import FREE, Plan, PlanningError
+    from lerobot_gcs_push.planning.expert import PlanExpert
+    from lerobot_gcs_push.registration import PUSHT_ENV_ID
+
+    assert make_expert(SCENES[PUSHT_ENV_ID], 10, planner=object()).stage_first
+    assert not make_expert(SE2, 10, planner=object()).stage_first
+    queries, refuse = [], []
+
+    class Stub:
+        scene = SE2
+        plannable, goal_of = ContactPlanner.plannable, ContactPlanner.goal_of
+
+        def __init__(self):
+            self.model, self.regions = SE2_PLANNER.model, SE2_PLANNER.regions
+
+        def plan(self, slider, finger, goal=None):
+            queries.append(np.array(finger, float))
+            if len(queries) <= len(refuse):
+                raise PlanningError("no sampled path's restriction solved")
+            fingers = np.array([finger, np.asarray(finger) + [0.0, 0.1]])
+            return Plan("test", 1.0, 0.5, 0.0, [], np.array([slider, slider]), fingers, [FREE], np.asarray(slider))
+
+    expert = PlanExpert(Stub(), 10, ExpertConfig(mode="closed-loop"), stage_first=True)
+    slider, far, near = np.array([1.0, -1.0, 0.4]), np.array([-3.0, 2.0]), np.array([1.0, -2.0])
+    staged = expert.staging_point(slider, far)
+    plan = expert._plan(slider, far)
+    np.testing.assert_allclose(queries[0], staged, atol=1e-3)
+    np.testing.assert_allclose(plan.finger_path[0], far)  # the way to the staging point comes first
+    queries.clear(), refuse.append(True)
+    plan = expert._plan(slider, far)  # none from the staging point: from the finger's own place
+    assert len(queries) == 2 and np.allclose(queries[1], far) and np.allclose(plan.finger_path[0], far)
+    queries.clear(), refuse.clear()
+    assert expert.staging_point(slider, near) is None
+    expert._plan(slider, near)
+    assert len(queries) == 1 and np.allclose(queries[0], near)
+
+
+def test_no_replan_from_the_state_the_plan_was_made_from(monkeypatch):
+    """A plan whose slider strays from it while nothing in the world moves (in gym-pusht a push of one step
+    the agent never made, the agent then back where it had planned: seed 10400's start 49). A replan from
+    that state would be the same plan again, and was, 43 times in 30 s. The expert replans once the state
+    has moved, not before."""
+    from lerobot_gcs_push.expert import ExpertConfig, make_expert
+    from lerobot_gcs_push.planning import FREE, Plan
+
+    expert = make_expert(SE2, 10, ExpertConfig(mode="closed-loop"))
+    monkeypatch.setattr(expert.planner, "warm_up", lambda: 0.0)
+
+    def plan(slider, finger, goal=None):  # 2 m of free motion at 1 m/s: 20 steps, the slider's reference 2 m off
+        poses = np.array([slider, np.asarray(slider) + [2.0, 0.0, 0.0]])
+        return Plan(
+            "test", 1.0, 0.5, 0.0, [], poses, np.array([finger, np.asarray(finger) + [0.0, 2.0]]), [FREE], poses[-1]
+        )
+
+    monkeypatch.setattr(expert.planner, "plan", plan)
+    still = {"slider_pose": np.array([1.0, -1.0, 0.4]), "finger": np.array([-2.0, 1.0])}
+    expert.reset(None, still)
+    for _ in range(10):  # stray checks at steps 5 (and the plan's reference 0.5 m off): none taken
+        expert.act(None, still)
+    assert len(expert.plans) == 1
+    moved = still | {"finger": still["finger"] + [0.0, 0.01]}
+    expert.act(None, moved)  # step 10: strayed, from a state that has moved
+    assert len(expert.plans) == 2
+    np.testing.assert_allclose(expert.plans[-1].finger_path[0], moved["finger"])
 
 
 def test_a_far_finger_with_no_plan_goes_straight_at_the_slider_and_plans_from_there(monkeypatch):
