@@ -1,5 +1,5 @@
 """Clarabel on the T's relaxation with and without its iterative refinement (at 1e-7 and 1e-6, and without
-equilibration): CPU seconds, iterations, status, the certified bound (`certificate.certify`) and how far x
+equilibration, and unrefined at 1e-5 and 1e-4): CPU seconds, iterations, status, the certified bound (`certificate.certify`) and how far x
 moves, for the first plan of gym-pusht's resets of seeds [FIRST, STOP).
 
     python experiments/pusht/clarabel_refinement.py gym_pusht/PushT-v0 10320 10340
@@ -20,6 +20,8 @@ VARIANTS = {  # Clarabel's settings; tolerances 1e-7 unless `tol` is given
     "refined": {},
     "unrefined": {"iterative_refinement_enable": False},
     "unrefined_1e-6": {"iterative_refinement_enable": False, "tol": 1e-6},
+    "unrefined_1e-5": {"iterative_refinement_enable": False, "tol": 1e-5},
+    "unrefined_1e-4": {"iterative_refinement_enable": False, "tol": 1e-4},
     "unrefined_unequilibrated": {"iterative_refinement_enable": False, "equilibrate_enable": False},
 }
 
