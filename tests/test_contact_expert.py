@@ -347,6 +347,54 @@ def test_stage_first_plans_a_far_finger_from_the_staging_point():
     assert len(queries) == 1 and np.allclose(queries[0], near)
 
 
+def test_a_dead_start_plans_from_round_the_staging_circle():
+    """Where no plan is found from a far finger's staging point, its own place, or to a waypoint (seed
+    11340's sixth start on gym-pusht: the agent held still for 30 s), the plan starts from a point round the
+    staging circle, and the finger goes there round the circle, clear of the slider all the way."""
+    from lerobot_gcs_push.expert import ExpertConfig
+    from lerobot_gcs_push.planning import FREE, Plan, PlanningError
+    from lerobot_gcs_push.planning.expert import RING_TURNS, PlanExpert
+    from lerobot_gcs_push.scene import wrap_angle
+
+    queries = []
+    slider, far = np.array([1.0, -1.0, 0.4]), np.array([-3.0, 2.0])
+
+    def bearing(point):
+        return np.arctan2(point[1] - slider[1], point[0] - slider[0])
+
+    class Stub:
+        scene = SE2
+        plannable, goal_of = ContactPlanner.plannable, ContactPlanner.goal_of
+
+        def __init__(self):
+            self.model, self.regions = SE2_PLANNER.model, SE2_PLANNER.regions
+
+        def plan(self, slider_pose, finger, goal=None):
+            queries.append((np.array(finger, float), goal))
+            # Plans only to the goal, and only from 100 degrees or more round from the far finger's bearing.
+            if goal is not None or abs(wrap_angle(bearing(finger) - bearing(far))) < np.deg2rad(100):
+                raise PlanningError("no sampled path's restriction solved")
+            fingers = np.array([finger, np.asarray(finger) + [0.0, 0.1]])
+            return Plan("test", 1.0, 0.5, 0.0, [], np.array([slider_pose] * 2), fingers, [FREE], slider_pose)
+
+    expert = PlanExpert(Stub(), 10, ExpertConfig(mode="closed-loop"), stage_first=True)
+    staged = expert.staging_point(slider, far)
+    plan = expert._plan(slider, far)
+    # The staging point, the finger's place, two waypoints, then round: 60 and -60 degrees refused, 120 planned.
+    assert len(queries) == 7 and [g is None for _, g in queries] == [True, True, False, False, True, True, True]
+    turned = [wrap_angle(bearing(f) - bearing(staged)) for f, _ in queries[4:]]
+    np.testing.assert_allclose(turned, RING_TURNS[:3], atol=1e-6)
+    start = queries[-1][0]
+    np.testing.assert_allclose(plan.finger_path[:2], [far, staged])
+    prefix = plan.finger_path[: np.flatnonzero(np.all(plan.finger_path == start, axis=1))[0] + 1]
+    assert len(prefix) > 4  # round the circle in steps, not straight across it
+    for a, b in zip(prefix[:-1], prefix[1:]):
+        assert all(expert._clear(slider, (1 - w) * a + w * b) for w in np.linspace(0.0, 1.0, 25))
+    radius = np.linalg.norm(staged - slider[:2])
+    chord_gaps = [np.linalg.norm((a + b) / 2 - slider[:2]) for a, b in zip(prefix[1:-1], prefix[2:])]
+    assert min(chord_gaps) > 0.98 * radius
+
+
 def test_no_replan_from_the_state_the_plan_was_made_from(monkeypatch):
     """A plan whose slider strays from it while nothing in the world moves (in gym-pusht a push of one step
     the agent never made, the agent then back where it had planned: seed 10400's start 49). A replan from

@@ -1,6 +1,6 @@
-"""Clarabel on the T's relaxation with and without its iterative refinement (at 1e-7 and 1e-6, and without
-equilibration, and unrefined at 1e-5 and 1e-4): CPU seconds, iterations, status, the certified bound (`certificate.certify`) and how far x
-moves, for the first plan of gym-pusht's resets of seeds [FIRST, STOP).
+"""Clarabel on the T's relaxation with and without its iterative refinement (at 1e-7 and 1e-6, without
+equilibration, and unrefined at 1e-5 and 1e-4): CPU seconds, iterations, status, the certified bound
+(`certificate.certify`) and how far x moves, for the first plan of gym-pusht's resets of seeds [FIRST, STOP).
 
     python experiments/pusht/clarabel_refinement.py gym_pusht/PushT-v0 10320 10340
 """

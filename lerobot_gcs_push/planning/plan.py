@@ -119,16 +119,17 @@ class Plan:
     def finger_length(self) -> float:
         return float(np.sum(np.linalg.norm(np.diff(self.finger_path, axis=0), axis=1)))
 
-    def preceded_by(self, finger) -> Plan:
-        """This plan with the finger first moving straight (free) from `finger` to where the plan starts, the
-        slider at rest meanwhile. Cost and bound stay the plan's own, from its start; `extra` says so."""
-        finger = np.asarray(finger, float)
+    def preceded_by(self, finger, *via) -> Plan:
+        """This plan with the finger first moving straight (free) from `finger`, through the points `via` in
+        turn, to where the plan starts, the slider at rest meanwhile. Cost and bound stay the plan's own,
+        from its start; `extra` says so."""
+        points = np.array([finger, *via], float).reshape(-1, 2)
         return replace(
             self,
-            finger_path=np.vstack([finger[None], self.finger_path]),
-            slider_poses=np.vstack([self.slider_poses[:1], self.slider_poses]),
-            segment_kinds=[FREE, *self.segment_kinds],
-            extra={**self.extra, "staged_from": finger.tolist()},
+            finger_path=np.vstack([points, self.finger_path]),
+            slider_poses=np.vstack([np.repeat(self.slider_poses[:1], len(points), axis=0), self.slider_poses]),
+            segment_kinds=[FREE] * len(points) + list(self.segment_kinds),
+            extra={**self.extra, "staged_from": points[0].tolist()},
         )
 
     def with_approaches(self, distance: float, clear: Callable | None = None) -> tuple:
