@@ -305,46 +305,54 @@ def test_a_start_with_no_plan_is_a_failed_run_not_a_crash(monkeypatch):
     np.testing.assert_allclose(res["slider_pose_final"], start, atol=1e-6)  # nothing pushed it
 
 
+class StubPlanner:
+    """The SE2 planner's queries without its solves: `refuse(finger, goal)` says which fail; every other
+    plan is a free step of 0.1 from the finger. Each query's (finger, goal) is kept in `queries`."""
+
+    scene = SE2
+    plannable, goal_of = ContactPlanner.plannable, ContactPlanner.goal_of
+
+    def __init__(self, refuse):
+        self.model, self.regions = SE2_PLANNER.model, SE2_PLANNER.regions
+        self.refuse, self.queries = refuse, []
+
+    def plan(self, slider, finger, goal=None):
+        from lerobot_gcs_push.planning import FREE, Plan, PlanningError
+
+        self.queries.append((np.array(finger, float), goal))
+        if self.refuse(finger, goal):
+            raise PlanningError("no sampled path's restriction solved")
+        fingers = np.array([finger, np.asarray(finger) + [0.0, 0.1]])
+        return Plan("test", 1.0, 0.5, 0.0, [], np.array([slider, slider]), fingers, [FREE], np.asarray(slider))
+
+
 def test_stage_first_plans_a_far_finger_from_the_staging_point():
     """gym-pusht's expert (`stage_first`, its agent starting anywhere) makes a far finger's plan from the
     staging point first, the finger's own place next; a finger within reach plans from where it is. The
     other scenes' experts plan from the finger first."""
     from lerobot_gcs_push.expert import ExpertConfig, make_expert
-    from lerobot_gcs_push.planning import FREE, Plan, PlanningError
     from lerobot_gcs_push.planning.expert import PlanExpert
     from lerobot_gcs_push.registration import PUSHT_ENV_ID
 
     assert make_expert(SCENES[PUSHT_ENV_ID], 10, planner=object()).stage_first
     assert not make_expert(SE2, 10, planner=object()).stage_first
-    queries, refuse = [], []
+    refuse = []
+    stub = StubPlanner(lambda finger, goal: len(stub.queries) <= len(refuse))
+    queries = stub.queries
 
-    class Stub:
-        scene = SE2
-        plannable, goal_of = ContactPlanner.plannable, ContactPlanner.goal_of
-
-        def __init__(self):
-            self.model, self.regions = SE2_PLANNER.model, SE2_PLANNER.regions
-
-        def plan(self, slider, finger, goal=None):
-            queries.append(np.array(finger, float))
-            if len(queries) <= len(refuse):
-                raise PlanningError("no sampled path's restriction solved")
-            fingers = np.array([finger, np.asarray(finger) + [0.0, 0.1]])
-            return Plan("test", 1.0, 0.5, 0.0, [], np.array([slider, slider]), fingers, [FREE], np.asarray(slider))
-
-    expert = PlanExpert(Stub(), 10, ExpertConfig(mode="closed-loop"), stage_first=True)
+    expert = PlanExpert(stub, 10, ExpertConfig(mode="closed-loop"), stage_first=True)
     slider, far, near = np.array([1.0, -1.0, 0.4]), np.array([-3.0, 2.0]), np.array([1.0, -2.0])
     staged = expert.staging_point(slider, far)
     plan = expert._plan(slider, far)
-    np.testing.assert_allclose(queries[0], staged, atol=1e-3)
+    np.testing.assert_allclose(queries[0][0], staged, atol=1e-3)
     np.testing.assert_allclose(plan.finger_path[0], far)  # the way to the staging point comes first
     queries.clear(), refuse.append(True)
     plan = expert._plan(slider, far)  # none from the staging point: from the finger's own place
-    assert len(queries) == 2 and np.allclose(queries[1], far) and np.allclose(plan.finger_path[0], far)
+    assert len(queries) == 2 and np.allclose(queries[1][0], far) and np.allclose(plan.finger_path[0], far)
     queries.clear(), refuse.clear()
     assert expert.staging_point(slider, near) is None
     expert._plan(slider, near)
-    assert len(queries) == 1 and np.allclose(queries[0], near)
+    assert len(queries) == 1 and np.allclose(queries[0][0], near)
 
 
 def test_a_dead_start_plans_from_round_the_staging_circle():
@@ -352,32 +360,20 @@ def test_a_dead_start_plans_from_round_the_staging_circle():
     11340's sixth start on gym-pusht: the agent held still for 30 s), the plan starts from a point round the
     staging circle, and the finger goes there round the circle, clear of the slider all the way."""
     from lerobot_gcs_push.expert import ExpertConfig
-    from lerobot_gcs_push.planning import FREE, Plan, PlanningError
     from lerobot_gcs_push.planning.expert import RING_TURNS, PlanExpert
     from lerobot_gcs_push.scene import wrap_angle
 
-    queries = []
     slider, far = np.array([1.0, -1.0, 0.4]), np.array([-3.0, 2.0])
 
     def bearing(point):
         return np.arctan2(point[1] - slider[1], point[0] - slider[0])
 
-    class Stub:
-        scene = SE2
-        plannable, goal_of = ContactPlanner.plannable, ContactPlanner.goal_of
-
-        def __init__(self):
-            self.model, self.regions = SE2_PLANNER.model, SE2_PLANNER.regions
-
-        def plan(self, slider_pose, finger, goal=None):
-            queries.append((np.array(finger, float), goal))
-            # Plans only to the goal, and only from 100 degrees or more round from the far finger's bearing.
-            if goal is not None or abs(wrap_angle(bearing(finger) - bearing(far))) < np.deg2rad(100):
-                raise PlanningError("no sampled path's restriction solved")
-            fingers = np.array([finger, np.asarray(finger) + [0.0, 0.1]])
-            return Plan("test", 1.0, 0.5, 0.0, [], np.array([slider_pose] * 2), fingers, [FREE], slider_pose)
-
-    expert = PlanExpert(Stub(), 10, ExpertConfig(mode="closed-loop"), stage_first=True)
+    # Plans only to the goal, and only from 100 degrees or more round from the far finger's bearing.
+    stub = StubPlanner(
+        lambda finger, goal: goal is not None or abs(wrap_angle(bearing(finger) - bearing(far))) < np.deg2rad(100)
+    )
+    queries = stub.queries
+    expert = PlanExpert(stub, 10, ExpertConfig(mode="closed-loop"), stage_first=True)
     staged = expert.staging_point(slider, far)
     plan = expert._plan(slider, far)
     # The staging point, the finger's place, two waypoints, then round: 60 and -60 degrees refused, 120 planned.

@@ -16,7 +16,7 @@ import sys
 import numpy as np
 from pydrake.solvers import SnoptSolver
 
-from lerobot_gcs_push.contact.rounding import ranked_paths, sample_paths, solve_restriction
+from lerobot_gcs_push.contact.rounding import ranked_paths, relaxation_guess, sample_paths
 from lerobot_gcs_push.expert import make_planner
 from lerobot_gcs_push.registration import SCENES, sample_starts
 
@@ -42,12 +42,7 @@ def main(n: int = 8, seed: int = 9414, k: int = 40) -> None:
         res = p.relaxation.solve(start, q, goal, allow, window)
         sampled, EXITS[:] = [], []
         for path in sample_paths(p.graph, res, p.candidates, np.random.default_rng(p.seed)):
-            guess_c = [res.contact_guess(c, via) for c, via in zip(path.contacts, path.frees)]
-            guess_q = [res.free_guess(f)["q"] for f in path.frees]
-            r = solve_restriction(
-                p.model, p.graph, p.regions, p.rounding_forms, path, p.knots, p.per_region,
-                start, q, goal, guess_c, guess_q, window,
-            )  # fmt: skip
+            r = p._restrict(path, start, q, goal, window, guess=relaxation_guess(res, path))
             faces = "".join(str(p.graph.contacts[c].face) for c in path.contacts)
             sampled.append(f"{faces}:{r.cost:.2f}" if r.success else f"{faces}:-")
         exits = list(EXITS)

@@ -12,7 +12,7 @@ import time
 import numpy as np
 from pydrake.solvers import SnoptSolver, SolverOptions
 
-from lerobot_gcs_push.contact.rounding import ranked_paths, sample_paths, solve_restriction
+from lerobot_gcs_push.contact.rounding import ranked_paths, relaxation_guess, sample_paths
 from lerobot_gcs_push.expert import make_planner
 from lerobot_gcs_push.registration import SCENES, sample_starts
 
@@ -62,21 +62,7 @@ for ic in sample_starts(scene, n, seed=seed):
             cur.update(VARIANTS[name])
             c = time.process_time()
             if kind == "s":
-                r = solve_restriction(
-                    p.model,
-                    p.graph,
-                    p.regions,
-                    p.rounding_forms,
-                    path,
-                    p.knots,
-                    p.per_region,
-                    start,
-                    q,
-                    goal,
-                    [res.contact_guess(cc, via) for cc, via in zip(path.contacts, path.frees)],
-                    [res.free_guess(f)["q"] for f in path.frees],
-                    window,
-                )
+                r = p._restrict(path, start, q, goal, window, guess=relaxation_guess(res, path))
             else:
                 r = p._restrict(path, start, q, goal, window)
             s = S[name]

@@ -11,7 +11,7 @@ import sys
 
 import numpy as np
 
-from lerobot_gcs_push.contact.rounding import ranked_paths, sample_paths, solve_restriction
+from lerobot_gcs_push.contact.rounding import ranked_paths, relaxation_guess, sample_paths
 from lerobot_gcs_push.expert import make_planner
 from lerobot_gcs_push.registration import SCENES
 
@@ -33,21 +33,7 @@ for slider, finger in json.loads(sys.argv[1]):
         )
 
     for path in sample_paths(p.graph, res, p.candidates, np.random.default_rng(p.seed)):
-        r = solve_restriction(
-            p.model,
-            p.graph,
-            p.regions,
-            p.rounding_forms,
-            path,
-            p.knots,
-            p.per_region,
-            start,
-            q,
-            goal,
-            [res.contact_guess(c, via) for c, via in zip(path.contacts, path.frees)],
-            [res.free_guess(f)["q"] for f in path.frees],
-            window,
-        )
+        r = p._restrict(path, start, q, goal, window, guess=relaxation_guess(res, path))
         out.append(("s", round(r.cost, 2), round(dev(r), 2)) if r.success else ("s", "-"))
     for path in ranked_paths(p.graph, res, allow)[:20]:
         r = p._restrict(path, start, q, goal, window)

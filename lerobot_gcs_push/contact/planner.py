@@ -292,10 +292,11 @@ class ContactPlanner:
             raise PlanningError("the baseline's SNOPT run found no feasible plan")
         return self._plan("baseline", r, pose, goal, None, dt, 1, {}, graph)
 
-    def _restrict(self, path: Path, pose, q, goal, window, graph=None, forms=None):
-        """The path's restriction, SNOPT from the straight-line guess (on the planner's graph by default)."""
+    def _restrict(self, path: Path, pose, q, goal, window, graph=None, forms=None, guess=None):
+        """The path's restriction, SNOPT from `guess` (contact modes' values, free modes' points: the
+        straight-line guess by default), on the planner's graph by default."""
         graph = graph or self.graph
-        guess_c, guess_q = self._straight_line_guess(graph, path, pose, q, goal)
+        guess_c, guess_q = guess or self._straight_line_guess(graph, path, pose, q, goal)
         return solve_restriction(
             self.model,
             graph,

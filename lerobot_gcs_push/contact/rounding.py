@@ -88,6 +88,15 @@ def _walk(graph: ContactGraph, res: RelaxationResult, rng) -> Path | None:
     return Path(tuple(frees), tuple(graph.successor(f) for f in frees))
 
 
+def relaxation_guess(res: RelaxationResult, path: Path) -> tuple[list[dict], list[np.ndarray]]:
+    """The relaxation's values along `path` (each vertex's divided by its flow): the restriction's initial
+    guess for the contact modes and the free modes."""
+    return (
+        [res.contact_guess(c, via) for c, via in zip(path.contacts, path.frees)],
+        [res.free_guess(f)["q"] for f in path.frees],
+    )
+
+
 def solve_restriction(
     model: PushModel,
     graph: ContactGraph,
@@ -178,8 +187,7 @@ def round_relaxation(
             start_pose,
             start_q,
             goal_pose,
-            [res.contact_guess(c, via) for c, via in zip(path.contacts, path.frees)],
-            [res.free_guess(f)["q"] for f in path.frees],
+            *relaxation_guess(res, path),
             window,
         )
         if r.success and (best is None or r.cost < best.cost):
@@ -187,4 +195,4 @@ def round_relaxation(
     return best, tried
 
 
-__all__ = ["Path", "Restriction", "round_relaxation", "sample_paths", "solve_restriction"]
+__all__ = ["Path", "Restriction", "relaxation_guess", "round_relaxation", "sample_paths", "solve_restriction"]
