@@ -310,11 +310,11 @@ class StubPlanner:
     plan is a free step of 0.1 from the finger. Each query's (finger, goal) is kept in `queries`."""
 
     scene = SE2
-    plannable, goal_of = ContactPlanner.plannable, ContactPlanner.goal_of
+    plannable, goal_of, distance = ContactPlanner.plannable, ContactPlanner.goal_of, ContactPlanner.distance
 
-    def __init__(self, refuse):
+    def __init__(self, refuse, detour=lambda finger: False):
         self.model, self.regions = SE2_PLANNER.model, SE2_PLANNER.regions
-        self.refuse, self.queries = refuse, []
+        self.refuse, self.detour, self.queries = refuse, detour, []
 
     def plan(self, slider, finger, goal=None):
         from lerobot_gcs_push.planning import FREE, Plan, PlanningError
@@ -322,8 +322,11 @@ class StubPlanner:
         self.queries.append((np.array(finger, float), goal))
         if self.refuse(finger, goal):
             raise PlanningError("no sampled path's restriction solved")
-        fingers = np.array([finger, np.asarray(finger) + [0.0, 0.1]])
-        return Plan("test", 1.0, 0.5, 0.0, [], np.array([slider, slider]), fingers, [FREE], np.asarray(slider))
+        goal = self.goal_of(slider) if goal is None else np.asarray(goal, float)
+        # To the goal, by way of a pose 1 m off it where `detour(finger)`.
+        middle = goal + [1.0, 0.0, 0.0] if self.detour(finger) else goal
+        fingers = np.array([finger, np.asarray(finger) + [0.0, 0.1], np.asarray(finger) + [0.0, 0.2]])
+        return Plan("test", 1.0, 0.5, 0.0, [], np.array([slider, middle, goal]), fingers, [FREE, FREE], goal)
 
 
 def test_stage_first_plans_a_far_finger_from_the_staging_point():
@@ -389,6 +392,34 @@ def test_a_dead_start_plans_from_round_the_staging_circle():
     radius = np.linalg.norm(staged - slider[:2])
     chord_gaps = [np.linalg.norm((a + b) / 2 - slider[:2]) for a, b in zip(prefix[1:-1], prefix[2:])]
     assert min(chord_gaps) > 0.98 * radius
+
+
+def test_a_plan_that_detours_is_replaced_by_one_from_the_staging_circle():
+    """Near the goal, the rounding's plan from the finger's own place can take the slider far off and back
+    (the Drake T's four failures of seed 5155, pushed off from within 0.1-0.3 of the goal). A plan from the
+    staging circle that does not detour replaces it, the finger going straight out to the circle first."""
+    from lerobot_gcs_push.expert import ExpertConfig
+    from lerobot_gcs_push.planning.expert import PlanExpert
+
+    goal = SE2_PLANNER.goal_of(np.zeros(3))
+    slider, finger = goal + [0.1, 0.0, 0.05], goal[:2] + [0.1 + 0.9, 0.0]
+    expert = PlanExpert(StubPlanner(lambda f, g: False), 10, ExpertConfig(mode="closed-loop"))
+    radius = SE2.shape.r_max + SE2.finger_radius + 0.1
+    assert np.linalg.norm(finger - slider[:2]) < radius and expert.staging_point(slider, finger) is None
+    # Every plan from inside the circle detours; from the circle none does.
+    stub = StubPlanner(lambda f, g: False, detour=lambda f: np.linalg.norm(f - slider[:2]) < radius - 1e-3)
+    expert.planner = stub
+    plan = expert._plan(slider, finger)
+    assert not expert.detours(slider, plan)
+    assert len(stub.queries) == 2  # the finger's own place, then the circle at its own bearing
+    out = stub.queries[1][0]
+    np.testing.assert_allclose(np.linalg.norm(out - slider[:2]), radius, rtol=1e-6)
+    np.testing.assert_allclose(plan.finger_path[0], finger)
+    assert all(expert._clear(slider, finger + w * (out - finger)) for w in np.linspace(0.0, 1.0, 25))
+    # The same plan from the finger's place, not detouring, is kept as it is.
+    stub = StubPlanner(lambda f, g: False)
+    expert.planner = stub
+    assert not expert.detours(slider, expert._plan(slider, finger)) and len(stub.queries) == 1
 
 
 def test_no_replan_from_the_state_the_plan_was_made_from(monkeypatch):
