@@ -339,6 +339,9 @@ def test_stage_first_plans_a_far_finger_from_the_staging_point():
 
     assert make_expert(SCENES[PUSHT_ENV_ID], 10, planner=object()).stage_first
     assert not make_expert(SE2, 10, planner=object()).stage_first
+    # Detouring replans are replaced in the Drake scenes, not in gym-pusht (where it cost throughput).
+    assert not make_expert(SCENES[PUSHT_ENV_ID], 10, planner=object()).replace_detours
+    assert make_expert(SE2, 10, planner=object()).replace_detours
     refuse = []
     stub = StubPlanner(lambda finger, goal: len(stub.queries) <= len(refuse))
     queries = stub.queries

@@ -87,10 +87,17 @@ class PlanExpert:
     replan_every, replan_tolerance, max_replans)."""
 
     def __init__(
-        self, planner: Planner, fps: float, config, speeds: Speeds | None = None, rule=BOX_RULE, stage_first=False
+        self,
+        planner: Planner,
+        fps: float,
+        config,
+        speeds: Speeds | None = None,
+        rule=BOX_RULE,
+        stage_first=False,
+        replace_detours=True,
     ):
         self.planner, self.fps, self.config, self.rule = planner, fps, config, rule
-        self.stage_first = stage_first
+        self.stage_first, self.replace_detours = stage_first, replace_detours
         self.speeds = speeds or Speeds()
         self.plans: list[Plan] = []
         self.plan_time_s = 0.0
@@ -182,7 +189,7 @@ class PlanExpert:
             except PlanningError as err:
                 failure = err
                 continue
-            if start is finger and target is None and self.detours(slider, plan):
+            if self.replace_detours and start is finger and target is None and self.detours(slider, plan):
                 plan = self._plan_round(slider, finger) or plan
             return plan if start is finger else plan.preceded_by(finger)
         for turn in RING_TURNS if staged is not None else ():
