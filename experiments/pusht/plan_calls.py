@@ -4,7 +4,7 @@ the outcome (restrictions tried, fallback, relaxation and rounding seconds, gap)
 JSON line a start, for gym-pusht's resets of seeds [FIRST, STOP) in one process.
 
     python experiments/pusht/plan_calls.py 11320 11336
-    py-spy record -r 50 -f raw -o spy.txt -- python experiments/pusht/plan_calls.py 11350 11362
+    py-spy record -r 50 -f raw -o spy.txt -- python experiments/pusht/plan_calls.py 11350 11362  # pip install py-spy
 """
 
 import json
