@@ -190,17 +190,16 @@ class PlanExpert:
                 failure = err
                 continue
             if self.replace_detours and start is finger and target is None and self.detours(slider, plan):
-                plan = self._plan_round(slider, finger) or plan
+                # From the circle at the finger's own bearing (the finger going straight out), then round.
+                centre = np.asarray(slider, float)[:2]
+                out = centre + (finger - centre) * self._staging_radius() / max(np.linalg.norm(finger - centre), 1e-9)
+                turns = (0.0, *RING_TURNS)
+                plan = self._plan_round(slider, finger, out, turns, lambda p: not self.detours(slider, p)) or plan
             return plan if start is finger else plan.preceded_by(finger)
-        for turn in RING_TURNS if staged is not None else ():
-            arc = self.ring_path(slider, staged, turn)
-            try:
-                plan = self.planner.plan(slider, arc[-1])
-            except PlanningError as err:
-                failure = err
-                continue
-            return plan.preceded_by(finger, *arc[:-1])
-        raise failure
+        plan = None if staged is None else self._plan_round(slider, finger, staged, RING_TURNS, accept=lambda p: True)
+        if plan is None:
+            raise failure
+        return plan
 
     def detours(self, slider, plan: Plan) -> bool:
         """Whether the plan takes the slider farther from its goal than DETOUR_RATIO and DETOUR_MARGIN allow."""
@@ -208,25 +207,21 @@ class PlanExpert:
         farthest = max(self.planner.distance(pose, plan.goal) for pose in plan.slider_poses)
         return farthest > max(DETOUR_RATIO * near, near + DETOUR_MARGIN)
 
-    def _plan_round(self, slider, finger) -> Plan | None:
-        """The first plan that does not detour from the staging circle: at the finger's own bearing, the
-        finger going straight out to it (where that way is clear of the slider), then turned by RING_TURNS,
-        the finger going round; None if none is found."""
-        scene = self.planner.scene
-        centre, finger = np.asarray(slider, float)[:2], np.asarray(finger, float)
-        radius = scene.shape.r_max + scene.finger_radius + STAGE_MARGIN_M
-        away = finger - centre
-        out = centre + away * radius / max(float(np.linalg.norm(away)), 1e-9)
-        if not all(self._clear(slider, finger + w * (out - finger)) for w in np.linspace(0.0, 1.0, 25)):
+    def _plan_round(self, slider, finger, on_circle, turns, accept) -> Plan | None:
+        """The first plan `accept` takes from the staging circle: from the point `on_circle` turned by each of
+        `turns` (rad) in turn, the finger going straight to `on_circle` (where that way is clear of the slider)
+        and then round the circle; None if there is none."""
+        finger = np.asarray(finger, float)
+        if not all(self._clear(slider, finger + w * (on_circle - finger)) for w in np.linspace(0.0, 1.0, 25)):
             return None
-        out = self.planner.plannable(slider, out)[1]
-        for turn in (0.0, *RING_TURNS):
-            arc = self.ring_path(slider, out, turn)
+        on_circle = self.planner.plannable(slider, on_circle)[1]
+        for turn in turns:
+            arc = self.ring_path(slider, on_circle, turn)
             try:
                 plan = self.planner.plan(slider, arc[-1])
             except PlanningError:
                 continue
-            if not self.detours(slider, plan):
+            if accept(plan):
                 return plan.preceded_by(finger, *arc[:-1])
         return None
 
@@ -247,11 +242,15 @@ class PlanExpert:
         """The point on the line from the finger to the slider's centre STAGE_MARGIN_M beyond the reach of
         both (the slider's radius about its pivot plus the finger's), when the finger is farther than that;
         else None. The way there stays outside that circle, so it cannot touch the slider."""
-        scene = self.planner.scene
         centre, finger = np.asarray(slider, float)[:2], np.asarray(finger, float)
-        radius = scene.shape.r_max + scene.finger_radius + STAGE_MARGIN_M
+        radius = self._staging_radius()
         away = float(np.linalg.norm(finger - centre))
         return centre + (finger - centre) * (radius / away) if away > radius else None
+
+    def _staging_radius(self) -> float:
+        """The staging circle's radius: the slider's reach about its pivot, the finger's, and STAGE_MARGIN_M."""
+        scene = self.planner.scene
+        return scene.shape.r_max + scene.finger_radius + STAGE_MARGIN_M
 
     def _clear(self, pose, point) -> bool:
         scene = self.planner.scene
