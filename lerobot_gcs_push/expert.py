@@ -62,7 +62,16 @@ def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=N
     # detouring replans are kept: replaced, they cost 10 % of its demonstrations an hour (`make bench`'s pusht
     # row, 837 against 929, run back to back) for no failure seen there; the Drake T's went 46 -> 49 of 50.
     pusht = scene.frame is not None
-    expert = PlanExpert(planner, fps, config, speeds_for(scene), rule, stage_first=pusht, replace_detours=not pusht)
+    expert = PlanExpert(
+        planner,
+        fps,
+        config,
+        speeds_for(scene),
+        rule,
+        stage_first=pusht,
+        replace_detours=not pusht,
+        fine_within=config.fine_within if scene.rotates else 0.0,
+    )
     if scene.frame is not None:
         from lerobot_gcs_push.pusht_agent import PixelActions
 
@@ -90,6 +99,10 @@ class ExpertConfig:
     # on (pusht_agent.PixelActions). Over 2 rather than 1, the expert's targets jumped a third to a quarter
     # as far, its demonstrations no longer (experiments/pusht/README.md, "Smoother actions").
     steer_actions: int = 2
+    # A slider that turns, within this distance of its goal (m + rad x r_max): the closed-loop expert corrects
+    # it by single pushes chosen on the linearised model (`contact.fine`), not by plans through the
+    # relaxation, whose rounding there returned plans at 100 times their bound; 0 turns that off.
+    fine_within: float = 0.25
 
     def __post_init__(self) -> None:
         if self.mode not in EXPERTS:
@@ -100,6 +113,8 @@ class ExpertConfig:
             raise ValueError(f"replan_tolerance must be > 0 (m), got {self.replan_tolerance}")
         if self.max_replans < 0:
             raise ValueError(f"max_replans must be >= 0, got {self.max_replans}")
+        if not self.fine_within >= 0:  # also refuses NaN
+            raise ValueError(f"fine_within must be >= 0 (m + rad x the slider's radius), got {self.fine_within}")
         if self.steer_actions < 1:
             raise ValueError(f"steer_actions must be >= 1, got {self.steer_actions}")
 

@@ -16,6 +16,7 @@ import cvxpy as cp
 import numpy as np
 
 from lerobot_gcs_push.contact.face_contact import finger_body
+from lerobot_gcs_push.contact.fine import Correction, corrections
 from lerobot_gcs_push.contact.graph import START, build_graph
 from lerobot_gcs_push.contact.model import HeadingWindow, PushModel
 from lerobot_gcs_push.contact.non_collision import free_regions, knots_of
@@ -184,6 +185,13 @@ class ContactPlanner:
         """How far apart two slider poses are: metres plus radians times the slider's radius."""
         a, b = np.asarray(a, float), np.asarray(b, float)
         return float(np.linalg.norm(a[:2] - b[:2]) + self.model.r_max * abs(wrap_angle(a[2] - b[2])))
+
+    def corrections(self, slider_pose, goal=None) -> list[Correction]:
+        """Single pushes towards the goal (or `goal`) on the model linearised about `slider_pose`, the least
+        error left first (`fine.corrections`): the expert's last corrections near the goal, uncertified."""
+        pose = np.asarray(slider_pose, float)
+        goal = self.goal_of(pose) if goal is None else np.asarray(goal, float)
+        return corrections(self.model, pose, goal, self.distance)
 
     def window(self, pose, goal) -> HeadingWindow | None:
         if self.window_margin is None:

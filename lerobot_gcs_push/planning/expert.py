@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from lerobot_gcs_push.planning.interface import Planner, PlanningError
-from lerobot_gcs_push.planning.plan import DWELL, FREE, PUSH, Plan, Schedule, Speeds
+from lerobot_gcs_push.planning.plan import DWELL, FREE, PUSH, RETREAT, Plan, Schedule, Speeds
+from lerobot_gcs_push.scene import wrap_angle
 
 # Shares of the way from the slider to its goal where a plan is sought when none reaches the goal. A T by
 # gym-pusht's wall, half a turn from its goal (seed 2027's sixth start), had no plan to the goal, one
@@ -50,6 +51,11 @@ DETOUR_RATIO, DETOUR_MARGIN = 1.5, 0.2
 # cos(step / 2) = 0.991 of the circle's radius, so it keeps clear of the slider by STAGE_MARGIN_M less 0.9 %
 # of that radius (0.086 m on gym-pusht's T).
 RING_STEP = np.deg2rad(15.0)
+# A correction's finger goes to this far off its contact point along the face's normal (m) before the
+# approach, and backs off this far after its push, so that the next correction's way starts clear of the slider.
+FINE_STANDOFF_M, FINE_RETREAT_M = 0.15, 0.1
+# A correction's push lasts at least this many actions (`PlanExpert._fine_speeds`).
+FINE_PUSH_ACTIONS = 4
 # How close (m, rad) a state is to the last one planned from to count as the same query.
 QUERY_ATOL = 1e-3
 
@@ -95,9 +101,13 @@ class PlanExpert:
         rule=BOX_RULE,
         stage_first=False,
         replace_detours=True,
+        fine_within=0.0,
     ):
         self.planner, self.fps, self.config, self.rule = planner, fps, config, rule
         self.stage_first, self.replace_detours = stage_first, replace_detours
+        # Within this distance of the goal (`Planner.distance`), a single push on the linearised model
+        # (`ContactPlanner.corrections`) before any plan; 0: never.
+        self.fine_within = fine_within
         self.speeds = speeds or Speeds()
         self.plans: list[Plan] = []
         self.plan_time_s = 0.0
@@ -167,7 +177,8 @@ class PlanExpert:
             self.plan_time_s += time.perf_counter() - t0
         self.plans.append(plan)
         scene = self.planner.scene
-        self._schedule = plan.schedule(self.fps, self.speeds, scene.push_lag_s, self.rule.approach_m, self._clear)
+        speeds = self._fine_speeds(plan) if plan.method == "fine" else self.speeds
+        self._schedule = plan.schedule(self.fps, speeds, scene.push_lag_s, self.rule.approach_m, self._clear)
         self._k = 0
 
     def _plan(self, slider, finger) -> Plan:
@@ -175,10 +186,14 @@ class PlanExpert:
         is far (`staging_point`), to the goal and then to waypoints part of the way there (the next replan
         goes on from one). With `stage_first`, a far finger's plan starts at the staging point first. Where
         none of those is found, from points round the staging circle (`RING_TURNS`), the finger going round."""
+        goal = self.planner.goal_of(slider)
+        if self.fine_within > 0 and self.planner.distance(slider, goal) < self.fine_within:
+            plan = self._fine_plan(slider, finger)
+            if plan is not None:
+                return plan
         staged = self.staging_point(slider, finger)
         if staged is not None:  # inside a free piece, as any start the planner takes
             staged = self.planner.plannable(slider, staged)[1]
-        goal = self.planner.goal_of(slider)
         waypoints = [slider + share * (goal - slider) for share in WAYPOINTS]
         to_goal = [finger] if staged is None else [staged, finger] if self.stage_first else [finger, staged]
         tries = [(start, None) for start in to_goal] + [(finger if staged is None else staged, w) for w in waypoints]
@@ -200,6 +215,71 @@ class PlanExpert:
         if plan is None:
             raise failure
         return plan
+
+    def _fine_plan(self, slider, finger) -> Plan | None:
+        """The first of the planner's corrections whose way there is clear: the finger goes to its
+        standoff (`_way`), in along the face's normal, pushes, and backs off. None where there is none."""
+        slider, finger = np.asarray(slider, float), np.asarray(finger, float)
+        t0 = time.perf_counter()
+        for k in self.planner.corrections(slider):
+            contact = k.fingers[0]
+            out = k.normal_world(float(slider[2]))
+            standoff = contact + FINE_STANDOFF_M * out
+            way = self._way(slider, finger, standoff, out)
+            if way is None or not self._segment_clear(slider, standoff, contact):
+                continue
+            end = k.fingers[-1] + FINE_RETREAT_M * k.normal_world(float(k.poses[-1][2]))
+            fingers = np.vstack([way, contact, k.fingers[1:], end])
+            rest = len(way) + 1
+            poses = np.vstack([np.repeat(slider[None], rest, axis=0), k.poses[1:], k.poses[-1:]])
+            kinds = [FREE] * len(way) + [PUSH] * (len(k.fingers) - 1) + [RETREAT]
+            steps = np.diff(fingers, axis=0)
+            return Plan(
+                "fine",
+                float(np.sum(steps * steps)),
+                None,
+                time.perf_counter() - t0,
+                ["free", f"face_{k.face}", "free"],
+                poses,
+                fingers,
+                kinds,
+                self.planner.goal_of(slider),
+                pushes=[{"face": k.face, "lam": k.lam, "normal": k.normal}],
+                extra={"fine_error": k.error},
+            )
+        return None
+
+    def _fine_speeds(self, plan: Plan) -> Speeds:
+        """The speeds, the push slowed to last FINE_PUSH_ACTIONS actions: a correction's push of a few cm ran
+        at the push speed within one action, which gym-pusht's steered agent never made (the T moved 3 mm
+        a push where 7 cm were planned)."""
+        push = [i for i, kind in enumerate(plan.segment_kinds) if kind == PUSH]
+        length = float(np.sum(np.linalg.norm(np.diff(plan.finger_path[push[0] : push[-1] + 2], axis=0), axis=1)))
+        return replace(self.speeds, push=min(self.speeds.push, max(length, 1e-3) * self.fps / FINE_PUSH_ACTIONS))
+
+    def _way(self, slider, finger, target, out) -> np.ndarray | None:
+        """A way for the finger from `finger` to `target` clear of the slider: straight where that is
+        clear, else out to the staging circle, round it, and in along `out` (the target's outward normal,
+        whose ray meets the circle); None where no such way is clear."""
+        if self._segment_clear(slider, finger, target):
+            return np.array([finger, target])
+        centre, radius = slider[:2], self._staging_radius()
+        # Where the ray target + t out (t >= 0) meets the circle |p - centre| = radius.
+        rel = target - centre
+        b = float(rel @ out)
+        t = -b + math.sqrt(max(b * b - (rel @ rel - radius**2), 0.0))
+        inward = target + t * out
+        away = finger - centre
+        outward = centre + away * radius / max(float(np.linalg.norm(away)), 1e-9)
+        if not (self._segment_clear(slider, finger, outward) and self._segment_clear(slider, inward, target)):
+            return None
+        turn = wrap_angle(math.atan2(*(inward - centre)[::-1]) - math.atan2(*(outward - centre)[::-1]))
+        steps = max(1, int(np.ceil(abs(turn) / RING_STEP)))
+        arc = [centre + _turned(outward - centre, a) for a in np.linspace(0.0, turn, steps + 1)]
+        return np.array([finger, *arc, target])
+
+    def _segment_clear(self, slider, a, b) -> bool:
+        return all(self._clear(slider, a + w * (b - a)) for w in np.linspace(0.0, 1.0, 25))
 
     def detours(self, slider, plan: Plan) -> bool:
         """Whether the plan takes the slider farther from its goal than DETOUR_RATIO and DETOUR_MARGIN allow."""
@@ -263,7 +343,11 @@ class PlanExpert:
 
     def _should_replan(self, info: dict) -> bool:
         cfg, sched, rule = self.config, self._schedule, self.rule
-        if not self._steps or self._steps % cfg.replan_every or len(self.plans) + self.failed_replans > cfg.max_replans:
+        if not self._steps or self._steps % cfg.replan_every:
+            return False
+        # Corrections take milliseconds: only plans count against max_replans (at 10 fps a 60 s episode
+        # could run 60 corrections).
+        if sum(p.method != "fine" for p in self.plans) + self.failed_replans > cfg.max_replans:
             return False
         # A plan depends on its query only: from the state where planning failed it fails again. In gym-pusht
         # a T no plan could move sat still for 30 s of 25 s replans (23 min of wall time, seed 4700's start 32).
@@ -288,6 +372,11 @@ class PlanExpert:
 def _slider(info: dict) -> np.ndarray:
     """The slider's pose: x, y, heading for one that turns (as rollout.py tells them apart), else the box."""
     return np.asarray(info["slider_pose"] if "slider_pose" in info else info["box"], float)
+
+
+def _turned(v: np.ndarray, angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
 
 
 def _sideways(miss: np.ndarray, along: np.ndarray) -> np.ndarray:
