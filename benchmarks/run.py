@@ -31,19 +31,21 @@ TARGETS = {
     "dataset.demonstrations_per_min": (">=", 50.0),
     # Issue 47: gym-pusht demonstrations planned through contact.
     "pusht.demonstrations_per_hour": (">=", 1000.0),
-    # Issue 32, the rotating box: the planner through contact.
+    # Issue 32, the rotating box: the planner through contact (its gap: issue 47's, below the reference's
+    # 5.4 %, Graesdal et al. with Mosek).
     "rotation.plan_median_s": ("<=", 0.5),
-    "rotation.gap_median": ("<=", 0.03),
+    "rotation.gap_median": ("<", 0.054),
     "rotation.rounding_success_frac": (">=", 1.0),
     "rotation.closed-loop_success_frac": (">=", 1.0),
     "rotation.open-loop_success_frac": (">=", 0.9),
-    # Issue 32, the T (50 starts; the reference: 80 s a plan at a 7.5 % median gap, with Mosek).
-    "rotation_tee.plan_median_s": ("<=", 2.0),
-    "rotation_tee.plan_p95_s": ("<=", 6.0),
-    "rotation_tee.gap_median": ("<=", 0.05),
+    # The T, 50 starts: issue 47's plan times and gap (the reference: 80 s a plan at a 7.5 % median gap,
+    # with Mosek) and closed-loop success (49 / 50); issue 32's p95 gap, rounding and open loop.
+    "rotation_tee.plan_median_s": ("<=", 1.0),
+    "rotation_tee.plan_p95_s": ("<=", 3.0),
+    "rotation_tee.gap_median": ("<", 0.075),
     "rotation_tee.gap_p95": ("<=", 0.15),
     "rotation_tee.rounding_success_frac": (">=", 1.0),
-    "rotation_tee.closed-loop_success_frac": (">=", 1.0),
+    "rotation_tee.closed-loop_success_frac": (">=", 0.98),
     "rotation_tee.open-loop_success_frac": (">=", 0.9),
 }
 
@@ -99,7 +101,7 @@ def main(argv=None) -> int:
             mark = ""
             if target and isinstance(v, (int, float)):
                 op, bound = target
-                ok = v >= bound if op == ">=" else v <= bound
+                ok = {">=": v >= bound, "<=": v <= bound, "<": v < bound}[op]
                 mark = f"   target {op} {bound:g}: {'met' if ok else 'MISSED'}"
             print(f"  {k:45s} {v:12.4g}{mark}" if isinstance(v, (int, float)) else f"  {k:45s} {v}")
         sys.stdout.flush()
