@@ -185,7 +185,8 @@ class PlanExpert:
         """A plan to the goal; where none is found, from the staging point the finger goes to first when it
         is far (`staging_point`), to the goal and then to waypoints part of the way there (the next replan
         goes on from one). With `stage_first`, a far finger's plan starts at the staging point first. Where
-        none of those is found, from points round the staging circle (`RING_TURNS`), the finger going round."""
+        none of those is found, from points round the staging circle (`RING_TURNS`), the finger going round.
+        Within `fine_within` of the goal, a correction comes first (`_fine_plan`)."""
         goal = self.planner.goal_of(slider)
         if self.fine_within > 0 and self.planner.distance(slider, goal) < self.fine_within:
             plan = self._fine_plan(slider, finger)
@@ -274,9 +275,7 @@ class PlanExpert:
         if not (self._segment_clear(slider, finger, outward) and self._segment_clear(slider, inward, target)):
             return None
         turn = wrap_angle(math.atan2(*(inward - centre)[::-1]) - math.atan2(*(outward - centre)[::-1]))
-        steps = max(1, int(np.ceil(abs(turn) / RING_STEP)))
-        arc = [centre + _turned(outward - centre, a) for a in np.linspace(0.0, turn, steps + 1)]
-        return np.array([finger, *arc, target])
+        return np.array([finger, *_arc(centre, outward, turn), target])
 
     def _segment_clear(self, slider, a, b) -> bool:
         return all(self._clear(slider, a + w * (b - a)) for w in np.linspace(0.0, 1.0, 25))
@@ -308,13 +307,7 @@ class PlanExpert:
     def ring_path(self, slider, staged, turn: float) -> list[np.ndarray]:
         """The finger's way from the staging point round the staging circle by `turn` (rad): the staging
         point, the points between at most RING_STEP apart, and the end (made plannable)."""
-        centre = np.asarray(slider, float)[:2]
-        d = np.asarray(staged, float) - centre
-        steps = max(1, int(np.ceil(abs(turn) / RING_STEP)))
-        arc = []
-        for a in np.linspace(0.0, turn, steps + 1):
-            c, s = np.cos(a), np.sin(a)
-            arc.append(centre + np.array([c * d[0] - s * d[1], s * d[0] + c * d[1]]))
+        arc = _arc(np.asarray(slider, float)[:2], np.asarray(staged, float), turn)
         arc[-1] = self.planner.plannable(slider, arc[-1])[1]
         return arc
 
@@ -374,9 +367,15 @@ def _slider(info: dict) -> np.ndarray:
     return np.asarray(info["slider_pose"] if "slider_pose" in info else info["box"], float)
 
 
-def _turned(v: np.ndarray, angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+def _arc(centre: np.ndarray, start: np.ndarray, turn: float) -> list[np.ndarray]:
+    """Points from `start` round `centre` by `turn` (rad), at most RING_STEP apart, both ends included."""
+    d = start - centre
+    steps = max(1, int(np.ceil(abs(turn) / RING_STEP)))
+    out = []
+    for a in np.linspace(0.0, turn, steps + 1):
+        c, s = math.cos(a), math.sin(a)
+        out.append(centre + np.array([c * d[0] - s * d[1], s * d[0] + c * d[1]]))
+    return out
 
 
 def _sideways(miss: np.ndarray, along: np.ndarray) -> np.ndarray:
