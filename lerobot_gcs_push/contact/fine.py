@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lerobot_gcs_push.contact.face_contact import finger_body
 from lerobot_gcs_push.contact.model import PushModel, cross
 from lerobot_gcs_push.scene import wrap_angle
 
@@ -48,7 +49,7 @@ class Correction:
 
 def corrections(model: PushModel, pose, goal, distance) -> list[Correction]:
     """Every single push the model offers from `pose` towards `goal`, the least error left first: only
-    pushes that leave less error than there is now, by `distance(pose, pose)` (`ContactPlanner.distance`)."""
+    pushes that leave less error than there is now, by `distance(pose, goal)` (`ContactPlanner.distance`)."""
     pose, goal = np.asarray(pose, float), np.asarray(goal, float)
     c, s = math.cos(pose[2]), math.sin(pose[2])
     d = goal[:2] - pose[:2]
@@ -83,7 +84,7 @@ def _integrate(model: PushModel, face, lam: float, u: np.ndarray, pose: np.ndarr
     x = pose.copy()
     step = amount / PUSH_STEPS
     for k in range(PUSH_STEPS + 1):
-        fingers.append(_world(x, face.a + lam * face.e + model.finger_radius * face.n))
+        fingers.append(_world(x, finger_body(face, model, lam)))
         if k == PUSH_STEPS:
             break
         dtheta = math.asin(float(np.clip(model.kappa * cross(face.a + lam * face.e, u) * step, -1.0, 1.0)))
