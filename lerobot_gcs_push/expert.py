@@ -20,10 +20,14 @@ EXPERTS = ("open-loop", "closed-loop")
 # with 34 replans; at 1 / 0.5 m/s, seed 2026's first three took 10-27 s and the fourth over 6 min of
 # replanning; steered, at 2 / 1 m/s, seed 77's two failures and one more succeeded in 4-9 s.
 PUSHT_SPEEDS = Speeds(free=2.0, approach=1.0, push=1.0, retreat=2.0, push_dwell_s=0.0, push_lead=0.0)
-# A slider that turns in the Drake sim: the box's speeds and lead, no dwell: its plans chain pushes, and the
+# A slider that turns in the Drake sim: the box's push speed and lead, no dwell: its plans chain pushes, and the
 # closed-loop expert replans where a push ended elsewhere. The lead builds up over its own length (0.34 m),
 # and the finger's sideways miss is steered out (experiments/rotation/README.md, "the finger gives way").
-TURNING_SPEEDS = Speeds(push_dwell_s=0.0, push_lead_ramp_m=0.34, push_lateral_gain=1.0)
+# Free motion at 3 m/s: every replan takes the finger round the slider again, and at the box's 1 m/s a T
+# from the arena's edge spent half its 60 s in free motion (5 of the bench's 50 starts ran out of time);
+# at 3 m/s all 5 succeeded, and the rotating box's episodes were 4.9 s shorter on average
+# (experiments/rotation/README.md, "Free motion at 3 m/s").
+TURNING_SPEEDS = Speeds(free=3.0, push_dwell_s=0.0, push_lead_ramp_m=0.34, push_lateral_gain=1.0)
 TEE_FINE_WITHIN = 0.25  # `fine_within_for`
 
 

@@ -199,7 +199,9 @@ def test_push_commands_lead_the_plan_by_the_fingers_lag_but_never_past_the_pushs
     fingers = np.array([[0.0, 1.0], [0.0, 0.0], [0.1, 0.0], [0.2, 0.0]])
     poses = np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.1, 0.0, 0.0], [1.2, 0.0, 0.0]])
     plan = Plan("test", 1.0, 0.5, 0.0, [], poses, fingers, [FREE, PUSH, PUSH], np.zeros(3))
-    speeds, lag_s = speeds_for(SE2), 0.5
+    from dataclasses import replace
+
+    speeds, lag_s = replace(speeds_for(SE2), free=1.0), 0.5  # free at 1 m/s: whole steps to the push
     lead = speeds.push_lead * lag_s * speeds.push  # 0.17 m
     sched = plan.schedule(10, speeds, lag_s)
     plain = plan.commands(10, speeds)
