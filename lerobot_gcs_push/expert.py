@@ -5,13 +5,14 @@ box's GCS cost-to-go that scores any policy's chunks (regret).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from lerobot_gcs_push.planner import GcsPlanner, plannable
 from lerobot_gcs_push.planning import Planner, PlanningError, Speeds
 from lerobot_gcs_push.planning.expert import BOX_RULE, TURNING_RULE, PlanExpert
+from lerobot_gcs_push.pusht_agent import COMMANDS
 
 EXPERTS = ("open-loop", "closed-loop")
 # gym-pusht's block is first order (it stops the moment the push does): no dwell. Its agent is steered onto
@@ -20,6 +21,16 @@ EXPERTS = ("open-loop", "closed-loop")
 # with 34 replans; at 1 / 0.5 m/s, seed 2026's first three took 10-27 s and the fourth over 6 min of
 # replanning; steered, at 2 / 1 m/s, seed 77's two failures and one more succeeded in 4-9 s.
 PUSHT_SPEEDS = Speeds(free=2.0, approach=1.0, push=1.0, retreat=2.0, push_dwell_s=0.0, push_lead=0.0)
+# gym-pusht's position commands: the plan's path with its acceleration bounded (m/s^2, `planning.timing`), so
+# that the commands a policy imitates have no kicks (experiments/pusht/README.md, "Imitable commands").
+PUSHT_POSITION_SPEEDS = replace(PUSHT_SPEEDS, accel=4.0)
+# And judged at twice the turning slider's shares: the agent rides the plan within an action but not on its
+# points, and at the turning rule's tolerance the T strayed past it after pushes twice as often as when
+# steered (22 replans against 11 on 10 starts), every replan a stop and a restart. On 20 tuning starts
+# (seeds 11820-11839) position commands led 3 actions at 4 m/s^2: 20 / 20, 84 plans, commands' second
+# difference 1.54-1.72x the agent's own (p90); judged at twice the shares: 20 / 20, 52 plans (the steered
+# expert: 57), 1.37-1.47x (experiments/pusht/README.md, "Imitable commands").
+PUSHT_POSITION_RULE = replace(TURNING_RULE, during_push=10.0, before_first_push=10.0, between_pushes=2.0)
 # A slider that turns in the Drake sim: the box's push speed and lead, no dwell: its plans chain pushes, and the
 # closed-loop expert replans where a push ended elsewhere. The lead builds up over its own length (0.34 m),
 # and the finger's sideways miss is steered out (experiments/rotation/README.md, "the finger gives way").
@@ -63,6 +74,8 @@ def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=N
     config = config or ExpertConfig()
     planner = planner or make_planner(scene, config.method)
     rule = TURNING_RULE if scene.rotates else BOX_RULE
+    if scene.frame is not None and config.commands == "position":
+        rule = PUSHT_POSITION_RULE
     # gym-pusht's agent starts anywhere, far from the T: planned from near it first (`PlanExpert._plan`). Its
     # detouring replans are kept: replaced, they cost 10 % of its demonstrations an hour (`make bench`'s pusht
     # row, 837 against 929, run back to back) for no failure seen there; the Drake T's went 46 -> 49 of 50.
@@ -71,7 +84,7 @@ def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=N
         planner,
         fps,
         config,
-        speeds_for(scene),
+        speeds_for(scene, config.commands),
         rule,
         stage_first=pusht,
         replace_detours=not pusht,
@@ -80,7 +93,7 @@ def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=N
     if scene.frame is not None:
         from lerobot_gcs_push.pusht_agent import PixelActions
 
-        return PixelActions(expert, scene.frame, config.steer_actions)
+        return PixelActions(expert, scene.frame, config.commands, config.lead_actions)
     return expert
 
 
@@ -95,10 +108,10 @@ def fine_within_for(scene) -> float:
     return TEE_FINE_WITHIN if scene.rotates and len(scene.shape.parts) > 1 else 0.0
 
 
-def speeds_for(scene) -> Speeds:
-    """The finger speeds the scene's expert runs its plans at."""
+def speeds_for(scene, commands: str = "position") -> Speeds:
+    """The finger speeds the scene's expert runs its plans at (gym-pusht's: with `commands`' timing)."""
     if scene.frame is not None:
-        return PUSHT_SPEEDS
+        return PUSHT_POSITION_SPEEDS if commands == "position" else PUSHT_SPEEDS
     return TURNING_SPEEDS if scene.rotates else Speeds()
 
 
@@ -111,10 +124,14 @@ class ExpertConfig:
     replan_every: int = 5
     replan_tolerance: float = 0.03
     max_replans: int = 50
-    # gym-pusht only: its PD agent is sent the target that lands it on the plan's point this many actions
-    # on (pusht_agent.PixelActions). Over 2 rather than 1, the expert's targets jumped a third to a quarter
-    # as far, its demonstrations no longer (experiments/pusht/README.md, "Smoother actions").
-    steer_actions: int = 2
+    # gym-pusht only: what an action is (pusht_agent.PixelActions). "position": the plan's own point
+    # `lead_actions` on (None: 3), along a path of bounded acceleration (`PUSHT_POSITION_SPEEDS`); the
+    # agent, trailing its command by about 1.5 actions, then rides the plan. "steer": the target that, held
+    # `lead_actions` actions (None: 2), lands the PD agent on that point; it inverts the PD, the commands
+    # until 2026-12-07 (over 2 rather than 1 its targets jumped a third to a quarter as far). Position
+    # commands are what a policy can imitate (experiments/pusht/README.md, "Imitable commands").
+    commands: str = "position"
+    lead_actions: int | None = None
     # A slider that turns, within this distance of its goal (m + rad x r_max): the closed-loop expert corrects
     # it by single pushes chosen on the linearised model (`contact.fine`), not by plans through the
     # relaxation; 0 turns that off; none: the scene's (`fine_within_for`).
@@ -131,8 +148,12 @@ class ExpertConfig:
             raise ValueError(f"max_replans must be >= 0, got {self.max_replans}")
         if self.fine_within is not None and not self.fine_within >= 0:  # also refuses NaN
             raise ValueError(f"fine_within must be >= 0 (m + rad x the slider's radius), got {self.fine_within}")
-        if self.steer_actions < 1:
-            raise ValueError(f"steer_actions must be >= 1, got {self.steer_actions}")
+        if self.commands not in COMMANDS:
+            raise ValueError(f"unknown commands {self.commands!r}: choose one of {COMMANDS}")
+        if self.lead_actions is None:
+            self.lead_actions = 3 if self.commands == "position" else 2
+        if self.lead_actions < 1:
+            raise ValueError(f"lead_actions must be >= 1, got {self.lead_actions}")
 
 
 class CostToGo:

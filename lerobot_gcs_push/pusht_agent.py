@@ -37,20 +37,27 @@ def target_for(position, velocity, goal, actions: int = 1) -> np.ndarray:
     return (np.asarray(goal, float) - a * np.asarray(position, float) - b * np.asarray(velocity, float)) / c
 
 
+COMMANDS = ("position", "steer")
+
+
 class PixelActions:
     """An expert in metres acting in a target that takes pixel actions (`scene.frame`): its commands are
     mapped to pixels, everything else (its state from `info`, plans, summaries) is the expert's own.
 
-    With `steer_actions` = N (gym-pusht's PD agent), each action is the target that, held N actions, puts
-    the agent on the point the plan sends N actions on (`target_for`), re-solved every action. Over one
-    action the targets jump three to four times as far as over two (experiments/pusht/README.md, "Smoother
-    actions"), and lean on the agent's velocity, which a policy that sees one frame cannot read. None sends
-    the plan's points themselves."""
+    `commands` says what an action is. "position": the plan's own point `lead_actions` actions on, a smooth
+    position path (the plan's timing bounds its acceleration) that the PD agent trails by about kv / kp =
+    0.2 s, so that a lead of two actions puts it on the plan; the target never depends on the agent's
+    velocity. "steer": the target that, held `lead_actions` actions, puts the agent on the point the plan
+    sends that many actions on (`target_for`), re-solved every action: it inverts the PD, so it amplifies
+    the intended move and cancels the agent's velocity, which a policy must then read from its frames
+    (experiments/pusht/README.md, "Smoother actions" and "Imitable commands")."""
 
-    def __init__(self, expert, frame, steer_actions: int | None = None):
-        if steer_actions is not None and steer_actions < 1:
-            raise ValueError(f"steer_actions must be >= 1, got {steer_actions}")
-        self.expert, self.frame, self.steer_actions = expert, frame, steer_actions
+    def __init__(self, expert, frame, commands: str = "position", lead_actions: int = 2):
+        if commands not in COMMANDS:
+            raise ValueError(f"unknown commands {commands!r}: choose one of {COMMANDS}")
+        if lead_actions < 1:
+            raise ValueError(f"lead_actions must be >= 1, got {lead_actions}")
+        self.expert, self.frame, self.commands, self.lead_actions = expert, frame, commands, lead_actions
 
     def __getattr__(self, name):
         return getattr(self.expert, name)
@@ -59,9 +66,9 @@ class PixelActions:
         self.expert.reset(obs, info, seed)
 
     def act(self, obs, info: dict) -> np.ndarray:
-        command = self.expert.act(obs, info)
-        n = self.steer_actions
-        if n is None:
-            return self.frame.to_px(command)
+        command = self.expert.act(obs, info)  # advances the plan (and replans) whatever is sent
+        n = self.lead_actions
         point = self.frame.to_px(command if n == 1 else self.expert.ahead(n))
+        if self.commands == "position":
+            return point
         return target_for(info["pos_agent"], info["vel_agent"], point, n)

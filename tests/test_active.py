@@ -152,6 +152,7 @@ def test_collect_records_the_expert_from_the_policy_states(tmp_path):
     ds = LeRobotDataset("local/test_active", root=tmp_path / "ds", video_backend="pyav")
     starts = np.asarray(ds.meta.episodes["dataset_from_index"])
     ends = np.asarray(ds.meta.episodes["dataset_to_index"])
+    assert len(starts) == len(ends) == len(states) == 2
     for s, (a, b) in zip(states, zip(starts, ends)):
         first, last = ds[int(a)], ds[int(b) - 1]
         np.testing.assert_allclose(first["observation.environment_state"].numpy(), s["box"], atol=1e-4)
@@ -191,7 +192,9 @@ def test_the_optimal_plan_has_no_regret_along_its_own_path(tmp_path):
         )
     )
     planner = GcsPlanner(SCENE, goal_tolerance=SCENE.success_threshold / np.sqrt(2))
-    for rec in read_runs(out / "runs.jsonl"):
+    recs = read_runs(out / "runs.jsonl")
+    assert len(recs) == 4 and all(r["policy"] == "gcs-open-loop" for r in recs)  # 4 starts x 1 run, one policy
+    for rec in recs:
         assert rec["success"]
         regrets = [c[1] for c in rec["regret_chunks"]]
         assert max(regrets) < 0.5 and min(regrets) > -1.0, regrets

@@ -147,7 +147,10 @@ def test_the_closed_loop_expert_reaches_coverage_in_the_sim(expert_eval):
 def test_open_loop_plans_stray_and_the_record_says_so(expert_eval):
     """Open-loop the slider strays from the plan (measured: 1 of 20 bench starts reach coverage). The
     records stay honest: success is coverage of the final pose."""
-    for rec in read_runs(expert_eval / "runs.jsonl"):
+    recs = read_runs(expert_eval / "runs.jsonl")
+    assert len(recs) == 6  # 3 starts x 1 run x 2 policies
+    assert sorted(r["policy"] for r in recs) == ["gcs-closed-loop"] * 3 + ["gcs-open-loop"] * 3
+    for rec in recs:
         final = np.load(expert_eval / rec["trajectory"])["slider_pose"][-1]
         covered = square_coverage(final, SE2.goal_pose, SE2.box_half)
         assert rec["success"] == (covered >= SE2.success_coverage)

@@ -228,12 +228,23 @@ def test_a_dual_point_is_checked_not_taken_on_the_solvers_word(planner):
     zero[: conic.zero] = 1e-3 * np.sign(np.random.default_rng(0).standard_normal(conic.zero))
     refused, big = certify(conic, x, z + zero)  # zero-cone duals are free: only the residual can refuse it
     assert refused is None and big > CERTIFY_TOL
+    nonneg = slice(conic.zero, conic.zero + conic.nonneg)
     outside = z.copy()
-    outside[conic.zero : conic.zero + conic.nonneg] = -1.0  # every nonnegative dual negative
+    outside[nonneg] = -1.0  # every nonnegative dual negative
     projected = project_dual(conic, outside)
-    assert np.all(projected[conic.zero : conic.zero + conic.nonneg] == 0.0)
+    assert np.all(projected[nonneg] == 0.0)
+    ruined, big = certify(conic, x, outside)  # projected back, but far from dual feasible: nothing certified
+    assert ruined is None and big > CERTIFY_TOL
+    # A point the projection repairs: the duals of inactive inequalities (below 1e-8) with b > 0 pushed to
+    # -1. Taken at its word, its dual objective d - b.z claims more than the optimum (measured: 4 above it);
+    # projected back, it certifies the bound of Clarabel's own point again, below the optimum.
+    small = conic.zero + np.flatnonzero((z[nonneg] < 1e-8) & (conic.b[nonneg] > 0))
+    assert len(small) > 0
+    outside = z.copy()
+    outside[small] = -1.0
+    assert float(conic.d - conic.b @ outside) > primal
     repaired, _ = certify(conic, x, outside)
-    assert repaired is None or repaired <= primal  # a repaired point may be certified, never above the optimum
+    assert repaired is not None and repaired <= primal and repaired == pytest.approx(bound, rel=1e-6)
     start = conic.zero + conic.nonneg + sum(conic.soc)
     n = conic.psd[0]
     m = -np.eye(n)  # negative definite: projected to 0

@@ -255,7 +255,7 @@ def test_the_steered_expert_tracks_its_plan_in_gym_pusht_over_n_actions(raw, ste
     commands = start + np.outer(np.arange(1, 41) * 0.1, [1.0, 0.0])
     inner = PlanExpert(None, 10, SimpleNamespace(mode="open-loop"), rule=BOX_RULE)
     inner._schedule, inner._k = Schedule(commands, [FREE] * 40, np.zeros((40, 3))), 0
-    expert = PixelActions(inner, FRAME, steer_actions)
+    expert = PixelActions(inner, FRAME, "steer", steer_actions)
     raw.reset(options={"reset_to_state": [*FRAME.to_px(start), 450.0, 100.0, 0.0]})
     offsets = []
     for k in range(30):
@@ -270,5 +270,39 @@ def test_the_steered_expert_tracks_its_plan_in_gym_pusht_over_n_actions(raw, ste
         np.testing.assert_allclose(offsets, 0.0, atol=1e-6)
     else:
         assert 0.0 < lead < (2.0 if steer_actions == 2 else 6.0)
-    with pytest.raises(ValueError, match="steer_actions"):
-        PixelActions(inner, FRAME, 0)
+    with pytest.raises(ValueError, match="lead_actions"):
+        PixelActions(inner, FRAME, "steer", 0)
+    with pytest.raises(ValueError, match="commands"):
+        PixelActions(inner, FRAME, "velocity", 2)
+
+
+@pytest.mark.parametrize("lead", [2, 3])
+def test_position_commands_are_the_plans_own_points_and_the_agent_rides_the_plan_within_an_action(raw, lead):
+    """The same 1 m/s ramp run by position commands: each action is exactly the plan's point `lead` actions
+    on (no dependence on the agent's state, so on the ramp the commands' second difference is nil), and in
+    gym-pusht itself the PD agent settles on the ramp's line within one action's travel (6 px) of the plan's
+    point at the action's end: it trails its command by about one and a half actions."""
+    from types import SimpleNamespace
+
+    from lerobot_gcs_push.planning import FREE, Schedule
+    from lerobot_gcs_push.planning.expert import BOX_RULE, PlanExpert
+    from lerobot_gcs_push.pusht_agent import PixelActions
+
+    start = np.array([-1.5, -1.5])
+    commands = start + np.outer(np.arange(1, 41) * 0.1, [1.0, 0.0])
+    inner = PlanExpert(None, 10, SimpleNamespace(mode="open-loop"), rule=BOX_RULE)
+    inner._schedule, inner._k = Schedule(commands, [FREE] * 40, np.zeros((40, 3))), 0
+    expert = PixelActions(inner, FRAME, "position", lead)
+    raw.reset(options={"reset_to_state": [*FRAME.to_px(start), 450.0, 100.0, 0.0]})
+    sent, offsets = [], []
+    for k in range(30):
+        info = {"pos_agent": np.array([1e3, -1e3]), "vel_agent": np.array([1e3, 1e3])}  # never read
+        action = expert.act(None, info)
+        np.testing.assert_allclose(action, FRAME.to_px(commands[k + lead - 1]), atol=1e-9)
+        sent.append(action)
+        raw.step(action)
+        offsets.append(np.array(raw.agent.position) - FRAME.to_px(commands[k]))
+    np.testing.assert_allclose(np.diff(sent, 2, axis=0), 0.0, atol=1e-9)
+    settled = np.array(offsets[20:])
+    np.testing.assert_allclose(settled, np.broadcast_to(settled[0], settled.shape), atol=1e-4)
+    assert settled[0][1] == pytest.approx(0.0, abs=1e-9) and abs(settled[0][0]) < 6.0

@@ -73,6 +73,8 @@ class ReplanRule:
     # Which command's segment tells whether a push runs: the next one to be sent (True) or the last sent.
     by_next_command: bool
     approach_m: float = 0.0  # `Plan.schedule`'s approach along a push's face normal (plans through contact)
+    # Elsewhere (after a push, outside it).
+    between_pushes: float = 1.0
 
 
 # The box: judged only between pushes, at the tolerance (a pushed box moves with the finger's lag and is
@@ -358,7 +360,7 @@ class PlanExpert:
         elif PUSH not in sched.kinds[:i]:
             share = rule.before_first_push
         else:
-            share = 1.0
+            share = rule.between_pushes
         return math.isfinite(share) and self.strayed_by(_slider(info)) > cfg.replan_tolerance * share
 
 

@@ -9,6 +9,8 @@ from enum import StrEnum
 
 import numpy as np
 
+from lerobot_gcs_push.planning.timing import Timing
+
 
 class SegmentKind(StrEnum):
     """What the finger does along a segment of a plan, in the order a push visits them."""
@@ -49,13 +51,17 @@ class Speeds:
     # finger gives way sideways to the face's force (the lead makes up the miss along the push only): the
     # Drake T's finger slid 0.15-0.2 m along the face off the planned contact and the T stayed behind.
     push_lateral_gain: float = 0.0
+    # Bound on the finger's acceleration along its path (m/s^2; `planning.timing`): every plan starts and
+    # ends at rest and slows for its corners. 0: none, the speed jumps at every knot.
+    accel: float = 0.0
 
     def of(self, kind: SegmentKind) -> float:
         return getattr(self, kind)
 
     def __post_init__(self) -> None:
+        may_be_nil = ("push_dwell_s", "push_lead", "push_lead_ramp_m", "push_lateral_gain", "accel")
         for k, v in asdict(self).items():
-            if not (v >= 0 if k in ("push_dwell_s", "push_lead", "push_lead_ramp_m", "push_lateral_gain") else v > 0):
+            if not (v >= 0 if k in may_be_nil else v > 0):
                 raise ValueError(f"Speeds.{k} must be positive, got {v}")
 
 
@@ -164,25 +170,28 @@ class Plan:
 
     def _knots(self, speeds: Speeds, approach_m: float = 0.0, clear: Callable | None = None):
         """Knots (finger, slider, the kind of the segment ending at each) with a dwell after each run of
-        pushes, and their times."""
+        pushes, and their `Timing`."""
         path, slider, kinds = self.with_approaches(approach_m, clear)
-        fp, sp, ks, times = [path[0]], [slider[0]], [], [0.0]
+        fp, sp, ks, vmax, hold = [path[0]], [slider[0]], [], [], []
         for i, kind in enumerate(kinds):
-            times.append(times[-1] + float(np.linalg.norm(path[i + 1] - path[i])) / speeds.of(kind))
             fp.append(path[i + 1])
             sp.append(slider[i + 1])
             ks.append(kind)
+            vmax.append(speeds.of(kind))
+            hold.append(0.0)
             ends_push = kind == PUSH and (i + 1 == len(kinds) or kinds[i + 1] != PUSH)
             if ends_push and speeds.push_dwell_s > 0:
-                times.append(times[-1] + speeds.push_dwell_s)
                 fp.append(path[i + 1])
                 sp.append(slider[i + 1])
                 ks.append(DWELL)
-        return np.array(fp), np.array(sp), ks, np.array(times)
+                vmax.append(speeds.push)
+                hold.append(speeds.push_dwell_s)
+        fp = np.array(fp)
+        return fp, np.array(sp), ks, Timing(fp, np.array(vmax), np.array(hold), speeds.accel)
 
     def duration(self, speeds: Speeds | None = None) -> float:
         """Commanded execution time (s), dwells included."""
-        return float(self._knots(speeds or Speeds())[3][-1])
+        return self._knots(speeds or Speeds())[3].duration
 
     def schedule(
         self,
@@ -203,21 +212,22 @@ class Plan:
         where the finger may stand): arriving along its free path at free speed, the finger touched the T
         5-10 cm from the planned contact and near the goal the push turned it away (experiments/rotation/)."""
         speeds = speeds or Speeds()
-        path, slider, kinds, t_knots = self._knots(speeds, approach_m, clear)
+        path, slider, kinds, timing = self._knots(speeds, approach_m, clear)
+        t_knots = timing.times
         n = max(1, int(np.ceil(t_knots[-1] * fps - 1e-9)))
         t = np.minimum(np.arange(1, n + 1) / fps, t_knots[-1])
-        cmds = np.stack([np.interp(t, t_knots, path[:, i]) for i in range(2)], axis=1)
-        poses = np.stack([np.interp(t, t_knots, slider[:, i]) for i in range(slider.shape[1])], axis=1)
         if not kinds:
-            return Schedule(cmds, [FREE] * n, poses)
-        seg = np.clip(np.searchsorted(t_knots, t - 1e-12) - 1, 0, len(kinds) - 1)
+            return Schedule(np.repeat(path[:1], n, axis=0), [FREE] * n, np.repeat(slider[:1], n, axis=0))
+        seg, share = timing.where(t)
+        cmds = path[seg] + share[:, None] * (path[seg + 1] - path[seg])
+        poses = slider[seg] + share[:, None] * (slider[seg + 1] - slider[seg])
         lead = speeds.push_lead * lag_s * speeds.push
         if lead > 0:
             for a, b in _push_runs(kinds):
                 run = path[a : b + 1]
                 arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(run, axis=0), axis=1))])
                 on = (t > t_knots[a] + 1e-12) & (t < t_knots[b] - 1e-9)  # as the segment kinds: (start, end]
-                done = np.interp(t[on], t_knots[a : b + 1], arc)
+                done = arc[seg[on] - a] + share[on] * (arc[seg[on] - a + 1] - arc[seg[on] - a])
                 ramp = np.clip(done / speeds.push_lead_ramp_m, 0.0, 1.0) if speeds.push_lead_ramp_m > 0 else 1.0
                 ahead = done + lead * ramp
                 if speeds.push_dwell_s <= 0:

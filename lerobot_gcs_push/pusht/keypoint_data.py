@@ -1,0 +1,101 @@
+"""gym-pusht demonstrations as LeRobot's keypoint observations, rebuilt from replay lists with no planning.
+
+A replay list (`gcs-push generate`'s `meta/gcs_push_replay.json`) holds each episode's start and the float32
+targets gym-pusht ran. Replayed in gym-pusht with `obs_type="environment_state_agent_pos"`, the env gives
+exactly what LeRobot's `pusht` env maps to `observation.state` (the agent, px) and
+`observation.environment_state` (the T's 8 keypoints, 16 values, px); each episode must end at the success
+it was recorded with, or the list does not belong to this gym-pusht.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+STATE, ENV_STATE, ACTION = "observation.state", "observation.environment_state", "action"
+KEYS = (STATE, ENV_STATE, ACTION)
+
+
+@dataclass
+class Episodes:
+    """Frames of consecutive episodes: `arrays[key]` (N, dim) float32 and `ends` (the index after each)."""
+
+    arrays: dict[str, np.ndarray]
+    ends: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.ends)
+
+    @property
+    def frames(self) -> int:
+        return int(self.ends[-1]) if len(self.ends) else 0
+
+    def starts(self) -> np.ndarray:
+        return np.concatenate([[0], self.ends[:-1]]).astype(int)
+
+
+def read_lists(paths, episodes: int | None = None) -> list[dict]:
+    """The episodes of the replay lists in order, the first `episodes` of them (all: None)."""
+    demos = []
+    for path in paths:
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"no replay list at {path} (gcs-push generate writes meta/gcs_push_replay.json)")
+        entries = json.loads(path.read_text())
+        if not isinstance(entries, list) or any("actions" not in e or "pusht_state" not in e for e in entries):
+            raise ValueError(f"{path} is not a gym-pusht replay list (entries with pusht_state and actions)")
+        demos += entries
+    if episodes is not None:
+        if episodes > len(demos):
+            raise ValueError(f"{episodes} episodes asked, the lists hold {len(demos)}")
+        demos = demos[:episodes]
+    return demos
+
+
+def replay(demos: list[dict], progress: bool = True) -> Episodes:
+    """Each demonstration run in gym-pusht from its start, its observations recorded before each action."""
+    import gym_pusht  # noqa: F401  (registers the env)
+    import gymnasium as gym
+    from tqdm.auto import tqdm
+
+    from lerobot_gcs_push.pusht_env import GYM_PUSHT_ID, GYM_PUSHT_STEPS
+    from lerobot_gcs_push.pusht_frame import reset_to_state
+
+    env = gym.make(GYM_PUSHT_ID, obs_type="environment_state_agent_pos", max_episode_steps=GYM_PUSHT_STEPS)
+    out: dict[str, list] = {k: [] for k in KEYS}
+    ends = []
+    for k, demo in enumerate(tqdm(demos, desc="replaying", unit="episode", disable=not progress)):
+        obs, _ = env.reset(options={"reset_to_state": reset_to_state(demo["pusht_state"])})
+        success = False
+        for action in demo["actions"]:
+            out[STATE].append(np.asarray(obs["agent_pos"], np.float32))
+            out[ENV_STATE].append(np.asarray(obs["environment_state"], np.float32))
+            out[ACTION].append(np.asarray(action, np.float32))
+            obs, _, _, _, info = env.step(np.asarray(action, np.float64))
+            success = bool(info["is_success"])
+        if not success:
+            raise ValueError(f"demonstration {k} did not end at its success on replay: not this gym-pusht's list")
+        ends.append(len(out[ACTION]))
+    env.close()
+    return Episodes({k: np.stack(v) for k, v in out.items()}, np.array(ends, np.int64))
+
+
+def load(paths, episodes: int | None = None, cache_dir=None, progress: bool = True) -> Episodes:
+    """`replay` of the lists, kept in `cache_dir` under the hash of what was replayed (a rebuild is minutes)."""
+    demos = read_lists(paths, episodes)
+    key = hashlib.sha256(json.dumps(demos, sort_keys=True).encode()).hexdigest()[:16]
+    cached = Path(cache_dir) / f"keypoints_{key}.npz" if cache_dir else None
+    if cached is not None and cached.is_file():
+        with np.load(cached) as z:
+            return Episodes({k: z[k] for k in KEYS}, z["ends"])
+    data = replay(demos, progress)
+    if cached is not None:
+        cached.parent.mkdir(parents=True, exist_ok=True)
+        tmp = cached.with_suffix(".tmp.npz")
+        np.savez(tmp, ends=data.ends, **data.arrays)
+        tmp.replace(cached)
+    return data

@@ -1,0 +1,90 @@
+"""The keypoint policy's data, training and export (`lerobot_gcs_push.pusht`): replayed frames against
+gym-pusht's geometry, the saved folder's LeRobot processors against the normalisation it was trained with,
+and a resumed run against an unbroken one."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from lerobot_gcs_push.pusht import keypoint_data
+from lerobot_gcs_push.pusht.keypoint_training import (
+    KeypointDataConfig,
+    ScheduleConfig,
+    TrainKeypointsConfig,
+    normalise,
+    stats_of,
+    train,
+)
+
+LIST = Path(__file__).parent.parent / "experiments" / "pusht" / "demos" / "seed4800.json"
+PRESET = str(Path(__file__).parent.parent / "configs" / "policy" / "diffusion_pusht_keypoints.json")
+
+
+@pytest.fixture(scope="module")
+def episodes():
+    return keypoint_data.load([LIST], episodes=3, progress=False)
+
+
+def test_replayed_frames_start_where_the_list_does_and_the_keypoints_move_rigidly(episodes):
+    demos = keypoint_data.read_lists([LIST], 3)
+    assert len(episodes) == 3 and episodes.frames == sum(len(d["actions"]) for d in demos)
+    for start, demo in zip(episodes.starts(), demos):
+        np.testing.assert_allclose(episodes.arrays["observation.state"][start], demo["pusht_state"][:2], atol=1e-3)
+        np.testing.assert_array_equal(episodes.arrays["action"][start], np.float32(demo["actions"][0]))
+    kp = episodes.arrays["observation.environment_state"].reshape(-1, 8, 2)
+    gaps = np.linalg.norm(kp[:, :, None] - kp[:, None], axis=-1)  # a rigid body keeps its keypoints' distances
+    np.testing.assert_allclose(gaps, np.broadcast_to(gaps[0], gaps.shape), atol=1e-2)
+    assert np.ptp(kp[:, 0], axis=0).max() > 5.0  # and the T was moved
+
+
+def test_a_list_that_does_not_replay_to_its_success_is_refused(tmp_path):
+    demo = keypoint_data.read_lists([LIST], 1)[0]
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps([demo | {"actions": demo["actions"][:3]}]))
+    with pytest.raises(ValueError, match="did not end at its success"):
+        keypoint_data.load([bad], progress=False)
+    with pytest.raises(ValueError, match="episodes asked"):
+        keypoint_data.read_lists([LIST], 10**6)
+
+
+def _config(tmp_path, steps, name="run", partial=None):
+    return TrainKeypointsConfig(
+        data=KeypointDataConfig(lists=[str(LIST)], episodes=3, cache_dir=str(tmp_path / "cache")),
+        schedule=ScheduleConfig(steps=steps, batch_size=8, warmup_steps=2, save_every=2),
+        preset=PRESET,
+        output_dir=str(tmp_path / name),
+        partial_dir=partial,
+    )
+
+
+def test_the_saved_folder_normalises_as_training_did_and_a_resumed_run_equals_an_unbroken_one(tmp_path, episodes):
+    from lerobot.policies.factory import make_pre_post_processors
+    from safetensors.torch import load_file
+
+    whole = train(_config(tmp_path, 6, "whole"), progress=False)
+    assert train(_config(tmp_path, 6, "broken"), progress=False, stop_after_s=0.0) is None  # a stage of 1 step
+    assert [json.loads(line)["step"] for line in (tmp_path / "broken" / "log.jsonl").read_text().splitlines()] == [1]
+    broken = train(_config(tmp_path, 6, "broken"), progress=False)
+    a, b = load_file(whole / "model.safetensors"), load_file(broken / "model.safetensors")
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+    pre, post = make_pre_post_processors(None, pretrained_path=str(whole))
+    stats = stats_of(episodes)
+    raw = {k: torch.from_numpy(episodes.arrays[k][:5]) for k in ("observation.state", "observation.environment_state")}
+    out = pre(raw)
+    for k, v in raw.items():
+        np.testing.assert_allclose(out[k].numpy(), normalise(v.numpy(), stats[k]), atol=1e-5)
+    back = post(torch.from_numpy(normalise(episodes.arrays["action"][:5], stats["action"])))
+    np.testing.assert_allclose(back.numpy(), episodes.arrays["action"][:5], atol=1e-3)
+
+
+def test_a_run_goes_on_from_the_small_partial_on_another_machine(tmp_path):
+    partial = str(tmp_path / "partial")
+    assert train(_config(tmp_path, 6, "here", partial), progress=False, stop_after_s=0.0) is None
+    # a fresh machine: no local checkpoint, only the committed partial
+    folder = train(_config(tmp_path, 6, "there", partial), progress=False)
+    log = (tmp_path / "there" / "log.jsonl").read_text().splitlines()
+    assert folder.is_dir() and [json.loads(line)["step"] for line in log] == [2, 4, 6]  # went on from step 1
