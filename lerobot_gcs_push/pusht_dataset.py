@@ -4,8 +4,9 @@
 `pixels` to `observation.image` and `agent_pos` to `observation.state`) has exactly these features:
 `observation.image` (the env's own 96 x 96 render, stored as video), `observation.state` (the agent's
 position, px), `action` (the agent's target, px), `next.reward`, `next.done` and `next.success`, at 10 fps.
-No `observation.environment_state`: the env LeRobot evaluates in never gives one, so a policy trained to
-expect it could not run there.
+With `obs_type="environment_state_agent_pos"` (LeRobot's `--env.obs_type` of the same name) the T's 8
+keypoints take the image's place as `observation.environment_state`, exactly as that env maps them: a keypoint
+policy trained on it runs in `lerobot-eval --env.type=pusht --env.obs_type=environment_state_agent_pos`.
 
 `next.*` of a frame are what the env's step from that frame's observation returned: its reward, its
 success, and done (the episode's last frame, which a kept episode reaches by succeeding).
@@ -25,17 +26,38 @@ PUSHT_FEATURE_KEYS = (
     "next.done",
     "next.success",
 )
+# What LeRobot's `pusht` env gives for each obs_type (its `features_map`): pixels to `observation.image`,
+# the keypoints to `observation.environment_state`, the agent to `observation.state`.
+OBS_TYPES = {"pixels_agent_pos": "observation.image", "environment_state_agent_pos": "observation.environment_state"}
 
 
-def pusht_features(image_size: int = 96) -> dict:
-    """lerobot/pusht's features (names as there), the image `image_size` px square."""
+def pusht_feature_keys(obs_type: str = "pixels_agent_pos") -> tuple[str, ...]:
+    """lerobot/pusht's feature keys, with the keypoints in place of the image for `environment_state_agent_pos`."""
+    check_obs_type(obs_type)
+    return (OBS_TYPES[obs_type], *PUSHT_FEATURE_KEYS[1:])
+
+
+def check_obs_type(obs_type: str) -> str:
+    if obs_type not in OBS_TYPES:
+        raise ValueError(f"gym-pusht's datasets take obs_type {' or '.join(OBS_TYPES)}, got {obs_type!r}")
+    return obs_type
+
+
+def pusht_features(image_size: int = 96, obs_type: str = "pixels_agent_pos") -> dict:
+    """lerobot/pusht's features (names as there), the image `image_size` px square; for
+    `environment_state_agent_pos`, the T's 8 keypoints (16 values, px) in its place, as LeRobot's env maps them."""
     motors = {"motors": ["motor_0", "motor_1"]}
-    return {
-        "observation.image": {
-            "dtype": "video",
-            "shape": (image_size, image_size, 3),
-            "names": ["height", "width", "channel"],
-        },
+    if check_obs_type(obs_type) == "pixels_agent_pos":
+        observation = {
+            "observation.image": {
+                "dtype": "video",
+                "shape": (image_size, image_size, 3),
+                "names": ["height", "width", "channel"],
+            }
+        }
+    else:
+        observation = {"observation.environment_state": {"dtype": "float32", "shape": (16,), "names": None}}
+    return observation | {
         "observation.state": {"dtype": "float32", "shape": (2,), "names": motors},
         "action": {"dtype": "float32", "shape": (2,), "names": motors},
         "next.reward": {"dtype": "float32", "shape": (1,), "names": None},
@@ -48,11 +70,12 @@ class PushTFrames:
     """Records a gym-pusht rollout as lerobot/pusht's frames: pass `frames.env` to `rollout` in place of the
     env. Each step stores the observation the action was chosen from, the action as the env ran it (clipped
     to the arena and rounded to float32, so that replaying the stored actions repeats the episode exactly)
-    and what that step returned."""
+    and what that step returned. `obs_type` must be the env's."""
 
-    def __init__(self, env):
+    def __init__(self, env, obs_type: str = "pixels_agent_pos"):
         self.env = _Recording(env, self)
-        self.frames: dict[str, list] = {k: [] for k in PUSHT_FEATURE_KEYS}
+        self.keys = pusht_feature_keys(obs_type)
+        self.frames: dict[str, list] = {k: [] for k in self.keys}
 
     def __len__(self) -> int:
         return len(self.frames["action"])
@@ -62,7 +85,10 @@ class PushTFrames:
 
     def _record(self, obs, action, reward, done, success) -> None:
         f = self.frames
-        f["observation.image"].append(np.asarray(obs["pixels"], np.uint8))
+        if "observation.image" in f:
+            f["observation.image"].append(np.asarray(obs["pixels"], np.uint8))
+        else:
+            f["observation.environment_state"].append(np.asarray(obs["environment_state"], np.float32))
         f["observation.state"].append(np.asarray(obs["agent_pos"], np.float32))
         f["action"].append(action)
         f["next.reward"].append(np.array([reward], np.float32))

@@ -216,6 +216,51 @@ def test_its_replay_list_rebuilds_it_value_for_value(pusht_dataset):
         assert np.array_equal(source[t]["observation.image"].numpy(), rebuilt[t]["observation.image"].numpy()), t
 
 
+@pytest.mark.slow
+def test_its_keypoint_twin_holds_what_lerobots_pusht_env_gives_with_environment_state(pusht_dataset):
+    """The same replay list written with `obs_type="environment_state_agent_pos"`: the image's place taken by
+    `observation.environment_state` (16 float32), every other value the pixel dataset's; and each episode's
+    first keypoints are what LeRobot's own observation mapping makes of gym-pusht's reset to that start."""
+    import gymnasium as gym
+    from lerobot.envs.utils import preprocess_observation
+
+    from lerobot_gcs_push.generate import GenerateConfig, generate
+    from lerobot_gcs_push.pusht_frame import reset_to_state
+    from lerobot_gcs_push.replay import REPLAY_META
+
+    home, root, report = pusht_dataset
+    twin = home / "local" / "gcs_pusht_keypoints"
+    cfg = GenerateConfig(
+        env_id=PUSHT_ENV_ID,
+        repo_id="local/gcs_pusht_keypoints",
+        root=str(twin),
+        initial_conditions=str(root / REPLAY_META),
+        obs_type="environment_state_agent_pos",
+        workers=1,
+        progress=False,
+    )
+    assert generate(cfg).frames == report.frames
+    info = json.loads((twin / "meta" / "info.json").read_text())
+    assert "observation.image" not in info["features"]
+    assert info["features"]["observation.environment_state"]["shape"] == [16]
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(sorted((twin / "data").rglob("*.parquet"))).to_pandas()
+    starts = json.loads((root / REPLAY_META).read_text())
+    env = gym.make("gym_pusht/PushT-v0", obs_type="environment_state_agent_pos")
+    for (_, rows), pixel, start in zip(table.groupby("episode_index", sort=True), _episodes(root), starts, strict=True):
+        rows = rows.sort_values("frame_index")
+        for key in ("observation.state", "action"):
+            assert np.array_equal(np.stack(rows[key].to_numpy()), pixel[key]), key
+        obs, _ = env.reset(options={"reset_to_state": reset_to_state(start["pusht_state"])})
+        mapped = preprocess_observation({k: v[None] for k, v in obs.items()})
+        kp = np.stack(rows["observation.environment_state"].to_numpy())
+        np.testing.assert_allclose(kp[0], mapped["observation.environment_state"][0].numpy(), atol=1e-4)
+        assert np.ptp(kp, axis=0).max() > 1.0  # the T moved
+    with pytest.raises(ValueError, match="obs_type"):
+        GenerateConfig(env_id=PUSHT_ENV_ID, repo_id="local/x", obs_type="state")
+
+
 def _lerobot(args: list[str], home: Path, cwd: Path) -> None:
     """One of LeRobot's console scripts, offline, on the datasets in `home` (as tests/test_lerobot_plugin.py)."""
     env = {

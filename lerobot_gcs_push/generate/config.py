@@ -60,6 +60,10 @@ class GenerateConfig(FanOut):
     fps: int = Scene.fps
     # Observation image side, pixels.
     image_size: int = 96
+    # gym-pusht only: pixels_agent_pos (lerobot/pusht's features: the image) or environment_state_agent_pos
+    # (the T's 8 keypoints as observation.environment_state in its place, for keypoint policies), as
+    # LeRobot's `--env.obs_type`. The Drake scenes write pixels_agent_pos.
+    obs_type: str = "pixels_agent_pos"
     # Simulated seconds before a rollout counts as failed. Default: the env's (500 s, the paper's; 30 s, that
     # is 300 steps, for gym-pusht, so its episodes succeed within gym-pusht's own limit).
     max_sim_time_s: float | None = None
@@ -121,6 +125,12 @@ class GenerateConfig(FanOut):
             self.max_sim_time_s = scene.timeout_s
         if self.image_size < 1:
             raise ValueError(f"image_size must be >= 1, got {self.image_size}")
+        if scene.frame is not None:
+            from lerobot_gcs_push.pusht_dataset import check_obs_type
+
+            check_obs_type(self.obs_type)
+        elif self.obs_type != "pixels_agent_pos":
+            raise ValueError(f"{self.env_id} writes obs_type pixels_agent_pos only, got {self.obs_type!r}")
         if not 0 < self.max_sim_time_s < float("inf"):  # inf would roll a failing start out forever
             raise ValueError(f"max_sim_time_s must be positive and finite, got {self.max_sim_time_s}")
         check_seed(self.seed)

@@ -13,7 +13,7 @@ from lerobot_gcs_push.generate.config import (
     EPISODES_META,
     GenerateConfig,
 )
-from lerobot_gcs_push.pusht_dataset import PUSHT_FEATURE_KEYS, pusht_features
+from lerobot_gcs_push.pusht_dataset import pusht_feature_keys, pusht_features
 from lerobot_gcs_push.registration import PUSHT_ENV_ID, SCENES
 from lerobot_gcs_push.scene import (
     Scene,
@@ -133,14 +133,14 @@ class _Writer:
         scene = SCENES[cfg.env_id]
         pusht = cfg.env_id == PUSHT_ENV_ID  # lerobot/pusht's features, its image as video
         self.task = scene.task
-        self.keys = PUSHT_FEATURE_KEYS if pusht else FEATURE_KEYS
+        self.keys = pusht_feature_keys(cfg.obs_type) if pusht else FEATURE_KEYS
         self.ds = LeRobotDataset.create(
             repo_id=cfg.repo_id,
             fps=cfg.fps,
-            features=pusht_features(cfg.image_size) if pusht else features(scene, cfg.image_size),
+            features=pusht_features(cfg.image_size, cfg.obs_type) if pusht else features(scene, cfg.image_size),
             root=root,
             robot_type=None if pusht else "gcs_push_finger",
-            use_videos=pusht,
+            use_videos=pusht and "observation.image" in self.keys,
             video_backend="pyav",
         )
 

@@ -43,6 +43,7 @@ def _init_worker(cfg_dict: dict, work_path: str, shards_path: str) -> None:
         image_size=cfg.image_size,
         disturbances=cfg.disturbances,
         max_sim_time_s=cfg.max_sim_time_s,
+        obs_type=cfg.obs_type,
     )
     _WORKER.update(
         cfg=cfg,
@@ -110,7 +111,7 @@ def _run_episode(job: tuple[int, dict]) -> dict:
     index, ic = job
     env, expert, cfg = _WORKER["env"], _WORKER["expert"], _WORKER["cfg"]
     pusht = cfg.env_id == PUSHT_ENV_ID  # lerobot/pusht's frames, recorded from the env's own steps
-    frames = PushTFrames(env) if pusht else EpisodeFrames(env.scene)
+    frames = PushTFrames(env, cfg.obs_type) if pusht else EpisodeFrames(env.scene)
     if cfg.expert == "replay":
         expert.load(ic["actions"])
     t0 = time.perf_counter()
