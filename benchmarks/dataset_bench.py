@@ -28,8 +28,8 @@ def run_pusht(episodes: int = 100, workers: int = 2, seed: int = PUSHT_SEED) -> 
     """gym-pusht demonstrations in lerobot/pusht's format, planned through contact from gym-pusht's own
     resets (issue 47's target: 1000 an hour on 2 cores). The T's relaxation is compiled first, outside the
     time, as a machine's first plan does once and caches."""
-    from lerobot_gcs_push.expert import make_planner
-    from lerobot_gcs_push.pusht_env import GYM_PUSHT_ID
+    from lerobot_gcs_push.planning.factory import make_planner
+    from lerobot_gcs_push.pusht.env import GYM_PUSHT_ID
     from lerobot_gcs_push.registration import SCENES
 
     make_planner(SCENES[GYM_PUSHT_ID]).warm_up()

@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 
-from lerobot_gcs_push.env import GcsPushEnv
+from lerobot_gcs_push.sim.env import GcsPushEnv
 
 # Scene.validate_state rejects any negative gap, and box - contact_distance can round to -4e-16.
 _CLEARANCE = 1e-9

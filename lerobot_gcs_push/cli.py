@@ -14,10 +14,10 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
-from lerobot_gcs_push.active import CollectConfig
 from lerobot_gcs_push.evaluation import EvaluateConfig
 from lerobot_gcs_push.generate import GenerateConfig
 from lerobot_gcs_push.improve import ImproveConfig
+from lerobot_gcs_push.improve.collect import CollectConfig
 from lerobot_gcs_push.registration import ENV_ID
 from lerobot_gcs_push.scene import is_finite_number, load_initial_conditions
 from lerobot_gcs_push.shipped import shipped_path
@@ -113,8 +113,8 @@ class DemoConfig(FanOut):
 
 
 def run_plan(cfg: PlanConfig) -> None:
-    from lerobot_gcs_push.expert import make_planner, speeds_for
     from lerobot_gcs_push.planning import PlanningError
+    from lerobot_gcs_push.planning.factory import make_planner, speeds_for
     from lerobot_gcs_push.registration import SCENES
 
     queries = (
@@ -185,7 +185,7 @@ def run_evaluate(cfg: EvaluateConfig) -> None:
 
 
 def run_collect(cfg: CollectConfig) -> None:
-    from lerobot_gcs_push.active import collect
+    from lerobot_gcs_push.improve.collect import collect
 
     report, states = collect(cfg)
     if report.already_finished:
@@ -217,8 +217,8 @@ def run_demo(cfg: DemoConfig) -> None:
     from pathlib import Path
 
     from lerobot_gcs_push.evaluation import changed_weights, evaluate, variant_label, video_path
+    from lerobot_gcs_push.evaluation.videos import side_by_side
     from lerobot_gcs_push.generate import dataset_root
-    from lerobot_gcs_push.videos import side_by_side
 
     gen = GenerateConfig(
         episodes=cfg.episodes,

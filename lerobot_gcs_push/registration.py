@@ -2,7 +2,7 @@
 pure-optimisation planner) stays light; the env module loads only when an env is made.
 
 One env class, three scenes: the ids differ only in the `Scene` they pass, so the goal pose and the
-success rule always come from the scene. A fourth id is gym-pusht's own env (`pusht_env.GymPushTTarget`
+success rule always come from the scene. A fourth id is gym-pusht's own env (`pusht.env.GymPushTTarget`
 wraps it); its scene is gym-pusht's T in metres. `make_env` is the one place an env is made from an id.
 """
 
@@ -12,7 +12,7 @@ import math
 
 import gymnasium as gym
 
-from lerobot_gcs_push.pusht_env import GYM_PUSHT_ID, GymPushTTarget, pusht_scene, reset_states
+from lerobot_gcs_push.pusht.env import GYM_PUSHT_ID, GymPushTTarget, pusht_scene, reset_states
 from lerobot_gcs_push.scene import HARD_SAMPLERS, InitialCondition, Scene, sample_initial_conditions
 
 ENV_ID = "GcsPushBox-v0"  # the paper's box, which cannot turn
@@ -49,7 +49,7 @@ def register_envs() -> None:
     for env_id, scene in SCENES.items():
         if env_id not in gym.envs.registry and env_id != PUSHT_ENV_ID:
             kwargs = {} if env_id == ENV_ID else {"scene": scene}
-            gym.register(id=env_id, entry_point="lerobot_gcs_push.env:GcsPushEnv", kwargs=kwargs)
+            gym.register(id=env_id, entry_point="lerobot_gcs_push.sim.env:GcsPushEnv", kwargs=kwargs)
 
 
 def sample_starts(scene: Scene, n: int, seed: int = 0, sampler: str = "sobol") -> list[InitialCondition]:

@@ -20,7 +20,7 @@ import numpy as np
 from lerobot_gcs_push.shapes import PIVOTS, SliderShape, square, tee
 
 if TYPE_CHECKING:
-    from lerobot_gcs_push.pusht_frame import PixelFrame
+    from lerobot_gcs_push.pusht.frame import PixelFrame
 
 
 @dataclass(frozen=True)
@@ -522,7 +522,7 @@ def load_initial_conditions(path, scene: Scene | None = None) -> list[dict]:
 
 
 def _pusht_entry(path, i: int, item: dict, scene: Scene | None) -> dict:
-    from lerobot_gcs_push.pusht_frame import check_pusht_state
+    from lerobot_gcs_push.pusht.frame import check_pusht_state
 
     if scene is None or scene.frame is None:
         raise ValueError(f"{str(path)!r} entry {i}: a pusht_state is gym-pusht's: use --env_id=gym_pusht/PushT-v0")

@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from lerobot_gcs_push.active import CollectConfig, branch_states, collect
-from lerobot_gcs_push.expert import chunk_regret, plannable
+from lerobot_gcs_push.improve.collect import CollectConfig, branch_states, collect
+from lerobot_gcs_push.planning.factory import chunk_regret, plannable
 from lerobot_gcs_push.scene import FAR_FINGER_M, HARD_KINDS, HARD_V2_KINDS, Scene, sample_initial_conditions
 
 SCENE = Scene()

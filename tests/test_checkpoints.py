@@ -49,7 +49,7 @@ def test_export_round_trip_is_exact_and_atomic(tmp_path):
 def test_a_step_is_written_only_into_a_partial_and_never_copied_out_of_one(tmp_path):
     """A training partial records its step; a policy exported from that partial does not, so it is
     never taken for a partial to resume (training.partial_step reads the step from there)."""
-    from lerobot_gcs_push.training import partial_step
+    from lerobot_gcs_push.improve.training import partial_step
 
     partial = export_policy(SHIPPED, tmp_path / "partial", step=1500)
     assert json.loads((partial / STEP_FILE).read_text()) == {"step": 1500}

@@ -195,9 +195,9 @@ def test_push_commands_lead_the_plan_by_the_fingers_lag_but_never_past_the_pushs
     """A hand-made plan: 1 m free along -y, then a 0.2 m push along +x in two knots. At 0.4 m/s the
     finger trails by 0.4 * lag_s; commands run that far ahead once the push has gone the ramp's length
     (before, the lead grows with the way pushed), capped at the push's end point (no dwell follows a
-    turning slider's pushes: its speeds, expert.speeds_for)."""
-    from lerobot_gcs_push.expert import speeds_for
+    turning slider's pushes: its speeds, factory.speeds_for)."""
     from lerobot_gcs_push.planning import FREE, PUSH, Plan
+    from lerobot_gcs_push.planning.factory import speeds_for
 
     fingers = np.array([[0.0, 1.0], [0.0, 0.0], [0.1, 0.0], [0.2, 0.0]])
     poses = np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.1, 0.0, 0.0], [1.2, 0.0, 0.0]])
@@ -228,9 +228,9 @@ def test_a_finger_pushed_sideways_is_steered_back_by_its_miss_across_the_push_on
     Outside pushes, and with no gain (gym-pusht, the box), commands are the schedule's."""
     from types import SimpleNamespace
 
-    from lerobot_gcs_push.expert import speeds_for
     from lerobot_gcs_push.planning import FREE, PUSH, Plan
     from lerobot_gcs_push.planning.expert import TURNING_RULE, PlanExpert
+    from lerobot_gcs_push.planning.factory import speeds_for
 
     fingers = np.array([[-1.0, 0.0], [0.0, 0.0], [0.1, 0.0], [0.2, 0.0], [0.3, 0.0], [0.4, 0.0]])
     poses = np.array([[0.5 + max(f[0], 0.0), 0.0, 0.0] for f in fingers])
@@ -259,8 +259,8 @@ def test_a_push_after_free_motion_is_reached_along_its_faces_normal_unless_that_
     contact point (0, -0.5) on the face whose body-frame normal is -x (in the world: -y), then two chained
     pushes along +y. 0.2 m of approach: the free motion ends at (0, -0.7), then 0.2 m at 0.25 m/s to the
     contact; the chained push gets none. Where the approach point is not clear, the plan is unchanged."""
-    from lerobot_gcs_push.expert import speeds_for
     from lerobot_gcs_push.planning import APPROACH, FREE, PUSH, Plan
+    from lerobot_gcs_push.planning.factory import speeds_for
 
     fingers = np.array([[1.0, -0.5], [0.0, -0.5], [0.0, -0.4], [0.0, -0.3]])
     poses = np.array([[0.0, 0.0, np.pi / 2], [0.0, 0.0, np.pi / 2], [0.0, 0.1, np.pi / 2], [0.0, 0.2, np.pi / 2]])
@@ -289,8 +289,8 @@ def test_a_start_with_no_plan_is_a_failed_run_not_a_crash(monkeypatch):
     whole `generate` once). Stood in for by a planner that always fails, so that the test does not hang
     on that start's numerics: the expert holds the finger where it is, and the episode runs out as a
     failure that the generator and the evaluation record."""
-    from lerobot_gcs_push.expert import ExpertConfig, make_expert
     from lerobot_gcs_push.planning import PlanningError
+    from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
     from lerobot_gcs_push.rollout import rollout
 
     env = gym.make(SE2_ENV_ID, max_sim_time_s=1.0, image_size=(32, 32)).unwrapped
@@ -338,8 +338,8 @@ def test_stage_first_plans_a_far_finger_from_the_staging_point():
     """gym-pusht's expert (`stage_first`, its agent starting anywhere) makes a far finger's plan from the
     staging point first, the finger's own place next; a finger within reach plans from where it is. The
     other scenes' experts plan from the finger first."""
-    from lerobot_gcs_push.expert import ExpertConfig, make_expert
     from lerobot_gcs_push.planning.expert import PlanExpert
+    from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
     from lerobot_gcs_push.registration import PUSHT_ENV_ID
 
     assert make_expert(SCENES[PUSHT_ENV_ID], 10, planner=object()).stage_first
@@ -370,8 +370,8 @@ def test_a_dead_start_plans_from_round_the_staging_circle():
     """Where no plan is found from a far finger's staging point, its own place, or to a waypoint (seed
     11340's sixth start on gym-pusht: the agent held still for 30 s), the plan starts from a point round the
     staging circle, and the finger goes there round the circle, clear of the slider all the way."""
-    from lerobot_gcs_push.expert import ExpertConfig
     from lerobot_gcs_push.planning.expert import RING_TURNS, PlanExpert
+    from lerobot_gcs_push.planning.factory import ExpertConfig
     from lerobot_gcs_push.scene import wrap_angle
 
     slider, far = np.array([1.0, -1.0, 0.4]), np.array([-3.0, 2.0])
@@ -406,8 +406,8 @@ def test_a_plan_that_detours_is_replaced_by_one_from_the_staging_circle():
     """Near the goal, the rounding's plan from the finger's own place can take the slider far off and back
     (the Drake T's four failures of seed 5155, pushed off from within 0.1-0.3 of the goal). A plan from the
     staging circle that does not detour replaces it, the finger going straight out to the circle first."""
-    from lerobot_gcs_push.expert import ExpertConfig
     from lerobot_gcs_push.planning.expert import PlanExpert
+    from lerobot_gcs_push.planning.factory import ExpertConfig
 
     goal = SE2_PLANNER.goal_of(np.zeros(3))
     slider, finger = goal + [0.1, 0.0, 0.05], goal[:2] + [0.1 + 0.9, 0.0]
@@ -435,8 +435,8 @@ def test_no_replan_from_the_state_the_plan_was_made_from(monkeypatch):
     the agent never made, the agent then back where it had planned: seed 10400's start 49). A replan from
     that state would be the same plan again, and was, 43 times in 30 s. The expert replans once the state
     has moved, not before."""
-    from lerobot_gcs_push.expert import ExpertConfig, make_expert
     from lerobot_gcs_push.planning import FREE, Plan
+    from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
 
     expert = make_expert(SE2, 10, ExpertConfig(mode="closed-loop"))
     monkeypatch.setattr(expert.planner, "warm_up", lambda: 0.0)
@@ -464,9 +464,9 @@ def test_a_far_finger_with_no_plan_goes_straight_at_the_slider_and_plans_from_th
     finger's plus the margin (the outline's farthest vertex from the pivot, computed here from the
     vertices): the expert plans again from the point on the way to the centre at that distance, and its
     first commands run from the finger straight along that line at free speed."""
-    from lerobot_gcs_push.expert import ExpertConfig, make_expert
     from lerobot_gcs_push.planning import FREE, Plan, PlanningError
     from lerobot_gcs_push.planning.expert import STAGE_MARGIN_M
+    from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
     from lerobot_gcs_push.rollout import rollout
 
     env = gym.make(SE2_ENV_ID, max_sim_time_s=1.0, image_size=(32, 32)).unwrapped

@@ -10,9 +10,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import lerobot_gcs_push  # noqa: F401  (registers the env ids)
-from lerobot_gcs_push.env import ENV_ID, DisturbanceSchedule, GcsPushEnv, register_envs
 from lerobot_gcs_push.scene import Disturbances, Scene
 from lerobot_gcs_push.sim import TopDownCamera
+from lerobot_gcs_push.sim.env import ENV_ID, DisturbanceSchedule, GcsPushEnv, register_envs
 
 SCENE = Scene()
 

@@ -14,10 +14,10 @@ from gymnasium.utils.env_checker import check_env
 from scipy import stats
 
 import lerobot_gcs_push  # noqa: F401  (registers the env ids)
-from lerobot_gcs_push.env import SE2_ENV_ID, TEE_ENV_ID, GcsPushEnv
 from lerobot_gcs_push.registration import SCENES
 from lerobot_gcs_push.scene import Disturbances, Scene, load_initial_conditions, sample_initial_conditions
 from lerobot_gcs_push.sim import PushSim
+from lerobot_gcs_push.sim.env import SE2_ENV_ID, TEE_ENV_ID, GcsPushEnv
 
 TEE_SCENE, SE2_SCENE = SCENES[TEE_ENV_ID], SCENES[SE2_ENV_ID]
 # By hand (tests/test_shapes.py): the T of bar 2 m reaches r_max^2 = 0.25^2 + (2.3125 / 1.75)^2 from its

@@ -85,7 +85,7 @@ def test_a_correction_plan_goes_round_the_slider_clear_of_it_and_pushes_last():
     """The finger on the far side of the box from the face a correction pushes: its way goes round the
     staging circle, every segment clear of the slider, then in along the face's normal, pushes, backs off.
     The plan is uncertified (no bound comes with a correction)."""
-    from lerobot_gcs_push.expert import ExpertConfig, make_expert
+    from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
 
     planner = ContactPlanner(SE2)
     expert = make_expert(SE2, 10, ExpertConfig(mode="closed-loop", fine_within=0.25), planner=planner)
@@ -106,7 +106,7 @@ def test_a_correction_plan_goes_round_the_slider_clear_of_it_and_pushes_last():
 
 
 def test_far_from_the_goal_the_relaxation_plans_not_the_corrections():
-    from lerobot_gcs_push.expert import ExpertConfig, make_expert
+    from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
 
     planner = CorrectionsOnly(SE2)
     expert = make_expert(SE2, 10, ExpertConfig(mode="closed-loop", fine_within=0.25), planner=planner)
@@ -123,7 +123,7 @@ def test_the_t_is_corrected_near_its_goal_and_the_rotating_box_is_not():
     """The scenes' own choice (`fine_within_for`): the T in both sims, not the convex rotating box, whose
     plans near the goal are good (corrections made its episodes 0.9 s longer on 50 starts); a setting given
     in the config overrides it."""
-    from lerobot_gcs_push.expert import ExpertConfig, make_expert
+    from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
 
     for env_id, on in ((TEE_ENV_ID, True), (PUSHT_ENV_ID, True), (SE2_ENV_ID, False)):
         expert = make_expert(SCENES[env_id], 10, ExpertConfig(mode="closed-loop"), planner=object())
@@ -140,8 +140,8 @@ def test_corrections_alone_bring_a_t_near_its_goal_to_success_in_gym_pusht(offse
     steered agent (measured 4.4 and 7.8 s), within 15 s with position commands, whose path starts and stops
     under the acceleration bound (6.4 and 12.5 s); with them off, the T never moves."""
     pytest.importorskip("gym_pusht")
-    from lerobot_gcs_push.expert import ExpertConfig, fine_within_for, make_expert
-    from lerobot_gcs_push.pusht_frame import GOAL_STATE
+    from lerobot_gcs_push.planning.factory import ExpertConfig, fine_within_for, make_expert
+    from lerobot_gcs_push.pusht.frame import GOAL_STATE
     from lerobot_gcs_push.registration import make_env
     from lerobot_gcs_push.rollout import rollout
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from conftest import gcs_push, kill_when
 
-from lerobot_gcs_push.shipping import decide
+from lerobot_gcs_push.improve.shipping import decide
 
 ROOT = Path(__file__).resolve().parents[1]
 ORACLE = ROOT / "experiments" / "scripts" / "validation_winner.py"
@@ -124,7 +124,7 @@ def _lines(path: Path) -> int:
 
 
 def test_the_tail_of_the_schedule_is_the_presets():
-    from lerobot_gcs_push.training import cosine_lr
+    from lerobot_gcs_push.improve.training import cosine_lr
 
     # Hand-computed: linear warm-up over 10 steps, then half a cosine to zero at step 110.
     assert cosine_lr(5, 110, 2e-4, 10) == pytest.approx(1e-4)
@@ -570,7 +570,7 @@ def test_pusht_rounds_start_from_the_committed_base_and_replay_its_demonstration
     assert not (tmp_path / "policy" / "step.json").exists()
 
     # collect: 4 states a rollout at most, and the labelled episodes' replay list kept beside the states
-    import lerobot_gcs_push.active as active
+    import lerobot_gcs_push.improve.collect as active
 
     monkeypatch.setenv("HF_LEROBOT_HOME", str(tmp_path / "home"))
     improver = imp.Improver(parse())

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from lerobot_gcs_push.improve import StopConfig
-from lerobot_gcs_push.improve_curve import curve_points, main, plot_curve
+from lerobot_gcs_push.improve.curve import curve_points, main, plot_curve
 
 
 def _state() -> dict:

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from lerobot_gcs_push.contact import ContactPlanner
-from lerobot_gcs_push.expert import ExpertConfig, make_expert, make_planner, speeds_for
 from lerobot_gcs_push.planner import GcsPlanner
 from lerobot_gcs_push.planning import DWELL, FREE, PUSH, Plan, Speeds
 from lerobot_gcs_push.planning.expert import BOX_RULE, TURNING_RULE, PlanExpert
-from lerobot_gcs_push.pusht_agent import PixelActions
+from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert, make_planner, speeds_for
+from lerobot_gcs_push.pusht.agent import PixelActions
 from lerobot_gcs_push.registration import SCENES
 
 BOX, SE2, PUSHT = SCENES["GcsPushBox-v0"], SCENES["GcsPushBoxSE2-v0"], SCENES["gym_pusht/PushT-v0"]

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lerobot_gcs_push.pusht_dataset import PUSHT_FEATURE_KEYS, PushTFrames, pusht_features
+from lerobot_gcs_push.pusht.dataset import PUSHT_FEATURE_KEYS, PushTFrames, pusht_features
 from lerobot_gcs_push.registration import PUSHT_ENV_ID
 
 BIN = Path(sys.executable).parent
@@ -152,7 +152,7 @@ def test_generated_episodes_replay_in_a_fresh_gym_pusht(pusht_dataset):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     from lerobot_gcs_push.generate import read_episode_metadata
-    from lerobot_gcs_push.pusht_frame import reset_to_state
+    from lerobot_gcs_push.pusht.frame import reset_to_state
 
     _, root, _ = pusht_dataset
     ds = LeRobotDataset(REPO_ID, root=root, video_backend="pyav")
@@ -193,7 +193,7 @@ def test_its_replay_list_rebuilds_it_value_for_value(pusht_dataset):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     from lerobot_gcs_push.generate import GenerateConfig, generate
-    from lerobot_gcs_push.replay import REPLAY_META
+    from lerobot_gcs_push.generate.replay import REPLAY_META
 
     home, root, report = pusht_dataset
     copy = home / "local" / "gcs_pusht_replayed"
@@ -225,8 +225,8 @@ def test_its_keypoint_twin_holds_what_lerobots_pusht_env_gives_with_environment_
     from lerobot.envs.utils import preprocess_observation
 
     from lerobot_gcs_push.generate import GenerateConfig, generate
-    from lerobot_gcs_push.pusht_frame import reset_to_state
-    from lerobot_gcs_push.replay import REPLAY_META
+    from lerobot_gcs_push.generate.replay import REPLAY_META
+    from lerobot_gcs_push.pusht.frame import reset_to_state
 
     home, root, report = pusht_dataset
     twin = home / "local" / "gcs_pusht_keypoints"

@@ -10,8 +10,8 @@ import pytest
 
 import lerobot_gcs_push  # noqa: F401
 from lerobot_gcs_push.contact.model import PushModel
-from lerobot_gcs_push.pusht_env import GymPushTTarget
-from lerobot_gcs_push.pusht_frame import COG_PX, GOAL_STATE, PixelFrame, check_pusht_state, reset_to_state
+from lerobot_gcs_push.pusht.env import GymPushTTarget
+from lerobot_gcs_push.pusht.frame import COG_PX, GOAL_STATE, PixelFrame, check_pusht_state, reset_to_state
 from lerobot_gcs_push.registration import PUSHT_ENV_ID, SCENES, make_env
 
 gym_pusht = pytest.importorskip("gym_pusht")
@@ -177,7 +177,7 @@ def test_the_limit_surface_is_the_blocks_mass_matrix_about_its_centre_of_gravity
 def test_the_steered_agent_lands_where_it_is_sent_in_gym_pusht(raw):
     """The agent's one-action map (derived from the PD law) inverted: gym-pusht's own agent, from moving
     starts, lands on random points within 1e-6 px; commanded with the point itself it falls short by its lag."""
-    from lerobot_gcs_push.pusht_agent import target_for
+    from lerobot_gcs_push.pusht.agent import target_for
 
     rng = np.random.default_rng(3)
     raw.reset(options={"reset_to_state": [256.0, 256.0, 60.0, 60.0, 0.0]})
@@ -201,7 +201,7 @@ def test_the_steered_agent_lands_where_it_is_sent_in_gym_pusht(raw):
 def test_the_closed_loop_expert_succeeds_in_gym_pusht():
     """Three of gym-pusht's own resets (seeds no choice used), the expert through contact closed loop:
     success by gym-pusht's rule (its shapely coverage > 0.95) within its 300 steps, the actions in px."""
-    from lerobot_gcs_push.expert import ExpertConfig, make_expert
+    from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
     from lerobot_gcs_push.rollout import rollout
 
     env = make_env(PUSHT_ENV_ID, obs_type="state")
@@ -220,8 +220,8 @@ def test_an_agent_far_from_the_t_with_no_plan_from_where_it_stands_goes_to_it_fi
     """gym-pusht's reset of seed 9777 puts the agent 2.2 m (131 px) from the T's centre of gravity. From
     there no sampled path's restriction solves (SNOPT finds each infeasible); the expert sends the agent
     straight at the T, plans from just beyond its reach, and succeeds within gym-pusht's 300 steps."""
-    from lerobot_gcs_push.expert import ExpertConfig, make_expert
     from lerobot_gcs_push.planning import PlanningError
+    from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
     from lerobot_gcs_push.rollout import rollout
 
     env = make_env(PUSHT_ENV_ID, obs_type="state")
@@ -249,7 +249,7 @@ def test_the_steered_expert_tracks_its_plan_in_gym_pusht_over_n_actions(raw, ste
 
     from lerobot_gcs_push.planning import FREE, Schedule
     from lerobot_gcs_push.planning.expert import BOX_RULE, PlanExpert
-    from lerobot_gcs_push.pusht_agent import PixelActions
+    from lerobot_gcs_push.pusht.agent import PixelActions
 
     start = np.array([-1.5, -1.5])  # metres: the agent's start, (166, 346) px
     commands = start + np.outer(np.arange(1, 41) * 0.1, [1.0, 0.0])
@@ -286,7 +286,7 @@ def test_position_commands_are_the_plans_own_points_and_the_agent_rides_the_plan
 
     from lerobot_gcs_push.planning import FREE, Schedule
     from lerobot_gcs_push.planning.expert import BOX_RULE, PlanExpert
-    from lerobot_gcs_push.pusht_agent import PixelActions
+    from lerobot_gcs_push.pusht.agent import PixelActions
 
     start = np.array([-1.5, -1.5])
     commands = start + np.outer(np.arange(1, 41) * 0.1, [1.0, 0.0])

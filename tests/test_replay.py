@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from lerobot_gcs_push.generate import GenerateConfig, generate, read_episode_metadata
-from lerobot_gcs_push.replay import REPLAY_META, ReplayActions, entry_line
+from lerobot_gcs_push.generate.replay import REPLAY_META, ReplayActions, entry_line
 
 
 def _columns(root: Path) -> dict[str, np.ndarray]:

@@ -158,7 +158,7 @@ def _drawn_fig7(monkeypatch, cfg, out, records, ics):
     """Fig. 7 drawn as evaluate draws it, kept open to read its artists."""
     import matplotlib.pyplot as plt
 
-    from lerobot_gcs_push.figures import fig7_trajectories
+    from lerobot_gcs_push.evaluation.figures import fig7_trajectories
 
     monkeypatch.setattr(plt, "close", lambda *a, **k: None)
     fig7_trajectories(cfg, out, records, ics)
@@ -205,10 +205,10 @@ def test_fig7_draws_the_slider_outline_along_the_path_and_at_the_goal(tee_eval, 
 def test_collect_takes_the_env_from_the_rollouts_and_branches_where_the_ts_coverage_stalls(tee_eval, tmp_path):
     """The T has no cost-to-go: `collect` picks the states where the policy's coverage stalls (stalls.py),
     in the T's own terms (position, heading, finger), each a start the T's env and `generate` accept."""
-    from lerobot_gcs_push.active import CollectConfig, rollouts_env_id
     from lerobot_gcs_push.evaluation import GCS_POLICIES
+    from lerobot_gcs_push.improve.collect import CollectConfig, rollouts_env_id
+    from lerobot_gcs_push.improve.stalls import stall_branch_states
     from lerobot_gcs_push.scene import load_initial_conditions
-    from lerobot_gcs_push.stalls import stall_branch_states
 
     assert rollouts_env_id([str(tee_eval)]) == TEE_ENV_ID
     scene = SCENES[TEE_ENV_ID]

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from lerobot_gcs_push.evaluation import GCS_POLICIES
+from lerobot_gcs_push.improve.stalls import StallRule, stall_branch_states, stall_steps
 from lerobot_gcs_push.registration import PUSHT_ENV_ID, SCENES, make_env
-from lerobot_gcs_push.stalls import StallRule, stall_branch_states, stall_steps
 
 SCENE = SCENES[PUSHT_ENV_ID]
 

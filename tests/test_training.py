@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from lerobot_gcs_push import training
-from lerobot_gcs_push.training import TrainJob, train
+from lerobot_gcs_push.improve import training
+from lerobot_gcs_push.improve.training import TrainJob, train
 
 PRESET = Path(__file__).resolve().parents[1] / "configs" / "policy" / "diffusion_cpu.json"
 
@@ -88,7 +88,7 @@ def test_a_fresh_job_starts_from_its_initial_policy_and_a_finished_partial_runs_
 
 
 def test_bf16_autocast_only_where_the_machine_has_bf16_units(tmp_path, runs):
-    from lerobot_gcs_push.training import bf16_native
+    from lerobot_gcs_push.improve.training import bf16_native
 
     plain, bf16 = tmp_path / "plain", tmp_path / "bf16"
     plain.write_text("flags\t\t: fpu sse2 avx2 avx512f\n")

@@ -13,7 +13,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from lerobot_gcs_push.contact.certificate import certify
-from lerobot_gcs_push.expert import make_planner
+from lerobot_gcs_push.planning.factory import make_planner
 from lerobot_gcs_push.registration import make_env
 
 VARIANTS = {  # Clarabel's settings; tolerances 1e-7 unless `tol` is given

@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from lerobot_gcs_push.contact.certificate import certify
-from lerobot_gcs_push.expert import make_planner
+from lerobot_gcs_push.planning.factory import make_planner
 from lerobot_gcs_push.registration import SCENES, sample_starts
 
 VARIANTS = {

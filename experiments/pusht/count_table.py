@@ -15,7 +15,7 @@ Every choice here was fixed on 2026-12-05 before any policy trained: the pool is
 `demos/` in seed order (4800, 4801, 4802, 4803), a count takes its first N episodes; the preset is
 `configs/policy/diffusion_pusht_cpu.json` (the box's CPU preset on lerobot/pusht's features); every count
 trains STEPS steps with seed 1000. Training exports an fp16 copy of each checkpoint (every 500 steps) to
-`base_<N>/partial`, the small state a fresh machine resumes from (`lerobot_gcs_push.training`): commit it
+`base_<N>/partial`, the small state a fresh machine resumes from (`lerobot_gcs_push.improve.training`): commit it
 at the end of a session. The datasets are rebuilt from the lists with no planning.
 """
 
@@ -75,8 +75,8 @@ def plan_pool(pool: str, seed: int = SEEDS[0]) -> None:
     expert's steering set to the pool's, in the same order and with the same episode count, so its count
     sets hold the same starts but where one expert failed and the other did not. Its replay list lands in
     `POOLS[pool][0]`: commit it."""
-    from lerobot_gcs_push.expert import ExpertConfig
     from lerobot_gcs_push.generate import lerobot_home
+    from lerobot_gcs_push.planning.factory import ExpertConfig
 
     folder, steer = POOLS[pool]
     if steer != ExpertConfig().steer_actions:
@@ -108,8 +108,8 @@ def dataset(name: str) -> None:
 
 
 def train(n: str) -> Path:
-    from lerobot_gcs_push.training import TrainJob
-    from lerobot_gcs_push.training import train as run
+    from lerobot_gcs_push.improve.training import TrainJob
+    from lerobot_gcs_push.improve.training import train as run
 
     dataset(n)
     job = TrainJob(

@@ -19,7 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from lerobot_gcs_push.expert import ExpertConfig, make_expert, make_planner
+from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert, make_planner
 from lerobot_gcs_push.registration import make_env
 
 

@@ -8,8 +8,8 @@ one JSON line a start for gym-pusht's resets of seeds [FIRST, STOP), one process
 import json
 import sys
 
-from lerobot_gcs_push.expert import ExpertConfig, make_expert
 from lerobot_gcs_push.planning import expert as ex
+from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
 from lerobot_gcs_push.planning.plan import PUSH
 from lerobot_gcs_push.registration import make_env
 

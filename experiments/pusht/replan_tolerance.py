@@ -8,7 +8,7 @@ import json
 import sys
 import time
 
-from lerobot_gcs_push.expert import ExpertConfig, make_expert, make_planner
+from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert, make_planner
 from lerobot_gcs_push.registration import make_env
 
 env = make_env("gym_pusht/PushT-v0")

@@ -17,7 +17,7 @@ import numpy as np
 from pydrake.solvers import SnoptSolver
 
 from lerobot_gcs_push.contact.rounding import ranked_paths, relaxation_guess, sample_paths
-from lerobot_gcs_push.expert import make_planner
+from lerobot_gcs_push.planning.factory import make_planner
 from lerobot_gcs_push.registration import SCENES, sample_starts
 
 EXITS: list[int] = []

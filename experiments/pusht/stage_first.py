@@ -9,7 +9,7 @@ import json
 import sys
 import time
 
-from lerobot_gcs_push.expert import ExpertConfig, make_expert
+from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
 from lerobot_gcs_push.registration import make_env
 
 

@@ -29,8 +29,8 @@ import gymnasium as gym
 import numpy as np
 import torch
 
-from lerobot_gcs_push.pusht_env import GYM_PUSHT_ID, GYM_PUSHT_STEPS
-from lerobot_gcs_push.pusht_frame import ARENA_PX, reset_to_state
+from lerobot_gcs_push.pusht.env import GYM_PUSHT_ID, GYM_PUSHT_STEPS
+from lerobot_gcs_push.pusht.frame import ARENA_PX, reset_to_state
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))

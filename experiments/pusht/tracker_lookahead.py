@@ -13,8 +13,8 @@ import time
 
 import numpy as np
 
-from lerobot_gcs_push.expert import ExpertConfig, make_expert, make_planner
-from lerobot_gcs_push.pusht_agent import PixelActions
+from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert, make_planner
+from lerobot_gcs_push.pusht.agent import PixelActions
 from lerobot_gcs_push.registration import make_env
 
 env = make_env("gym_pusht/PushT-v0")

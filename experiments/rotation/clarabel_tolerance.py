@@ -12,7 +12,7 @@ import scipy.sparse as sp
 
 from lerobot_gcs_push.contact import ContactPlanner
 from lerobot_gcs_push.contact.certificate import certify
-from lerobot_gcs_push.pusht_env import pusht_scene, reset_states
+from lerobot_gcs_push.pusht.env import pusht_scene, reset_states
 
 planner = ContactPlanner(pusht_scene())
 planner.warm_up()

@@ -12,7 +12,7 @@ import sys
 import numpy as np
 
 from lerobot_gcs_push.contact.rounding import ranked_paths, relaxation_guess, sample_paths
-from lerobot_gcs_push.expert import make_planner
+from lerobot_gcs_push.planning.factory import make_planner
 from lerobot_gcs_push.registration import SCENES
 
 p = make_planner(SCENES["GcsPushT-v0"])

@@ -11,8 +11,8 @@ import time
 
 import numpy as np
 
-from lerobot_gcs_push.expert import ExpertConfig, make_expert
 from lerobot_gcs_push.planning import PlanningError
+from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
 from lerobot_gcs_push.registration import make_env
 from lerobot_gcs_push.rollout import rollout
 

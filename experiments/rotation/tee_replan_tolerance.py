@@ -11,7 +11,7 @@ import time
 import gymnasium as gym
 
 import lerobot_gcs_push  # noqa: F401  (registers the envs)
-from lerobot_gcs_push.expert import ExpertConfig, make_expert, make_planner
+from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert, make_planner
 from lerobot_gcs_push.registration import TEE_ENV_ID
 from lerobot_gcs_push.rollout import rollout
 

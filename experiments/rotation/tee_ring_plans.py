@@ -11,9 +11,9 @@ import sys
 
 import numpy as np
 
-from lerobot_gcs_push.expert import ExpertConfig, make_expert
 from lerobot_gcs_push.planning import PlanningError
 from lerobot_gcs_push.planning.expert import STAGE_MARGIN_M
+from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
 from lerobot_gcs_push.registration import SCENES
 
 ex = make_expert(SCENES["GcsPushT-v0"], 10, ExpertConfig(mode="closed-loop"))

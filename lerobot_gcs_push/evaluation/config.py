@@ -55,7 +55,7 @@ class EvaluateConfig(FanOut):
     # named set of configurations a cloned policy gets wrong (scene.py), with its own seed; `hard_v2` adds
     # fingers far from the box (opposite corners among them).
     sampler: str = "uniform"
-    # Regret of each executed chunk against the GCS cost-to-go (expert.chunk_regret); a chunk above
+    # Regret of each executed chunk against the GCS cost-to-go (planning.factory.chunk_regret); a chunk above
     # `large_regret_m` is a mistake (the GCS experts stay under 0.5 m per chunk, tracking lag included,
     # unless a disturbance strikes). Default: on where the env has a GCS expert (the box).
     regret: bool | None = None
@@ -87,7 +87,7 @@ class EvaluateConfig(FanOut):
     overwrite: bool = False
 
     def __post_init__(self) -> None:
-        from lerobot_gcs_push.expert import check_cost_to_go
+        from lerobot_gcs_push.planning.factory import check_cost_to_go
         from lerobot_gcs_push.rollout import check_env_id
 
         check_env_id(self.env_id)

@@ -85,7 +85,7 @@ def evaluate(cfg: EvaluateConfig) -> dict:
         tmp.write_text(json.dumps({k: v for k, v in summary.items() if k != "tables_md"}, indent=1))
     with atomic_path(out / "tables.md") as tmp:
         tmp.write_text(summary["tables_md"])
-    from lerobot_gcs_push.figures import make_figures
+    from lerobot_gcs_push.evaluation.figures import make_figures
 
     summary["figures"] = make_figures(cfg, out, records, ics)
     return summary

@@ -48,7 +48,7 @@ class _Runner:
         self._cost_to_go = None
 
     def regret(self, boxes, fingers, every: int) -> dict:
-        from lerobot_gcs_push.expert import CostToGo, chunk_regret
+        from lerobot_gcs_push.planning.factory import CostToGo, chunk_regret
 
         if self._cost_to_go is None:
             self._cost_to_go = CostToGo(self.envs[False].scene)
@@ -70,7 +70,7 @@ class _Runner:
 
     def expert(self, name: str):
         if name not in self._experts:
-            from lerobot_gcs_push.expert import ExpertConfig, make_expert
+            from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
 
             env = self.envs[False]
             config = ExpertConfig(mode=name.removeprefix("gcs-"))
@@ -121,7 +121,7 @@ class _Runner:
         traj.save(tpath)
         if frames:
             frames.append(env.render())
-            from lerobot_gcs_push.videos import write_video
+            from lerobot_gcs_push.evaluation.videos import write_video
 
             write_video(video_path(self.out, label, i), frames, env.fps)
         regret = self.regret(traj.box, traj.finger, chunk) if self.cfg.regret else {}

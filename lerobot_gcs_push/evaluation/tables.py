@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from lerobot_gcs_push.evaluation.config import GCS_POLICIES, EvaluateConfig, variant_label, variants
+from lerobot_gcs_push.evaluation.success import success_measures
 from lerobot_gcs_push.registration import ENV_ID
-from lerobot_gcs_push.success import success_measures
 
 # The paper's Tables I and III, for the columns our variants reproduce.
 PAPER = {

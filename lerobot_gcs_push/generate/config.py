@@ -7,8 +7,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from lerobot_gcs_push.generate.hub import check_online
+from lerobot_gcs_push.generate.replay import ReplayActions
 from lerobot_gcs_push.registration import ENV_ID, SCENES
-from lerobot_gcs_push.replay import ReplayActions
 from lerobot_gcs_push.scene import (
     Disturbances,
     Scene,
@@ -28,7 +28,7 @@ _IMPLICIT_SETTINGS = {"env_id": ENV_ID}
 class GenerateConfig(FanOut):
     # The registered env to record in: GcsPushBox-v0 (the box that cannot turn), GcsPushBoxSE2-v0 or
     # GcsPushT-v0 (rotating sliders, whose GCS expert plans through contact: --method=relaxation only), or
-    # gym_pusht/PushT-v0 (gym-pusht's own env, written in lerobot/pusht's format: see pusht_dataset.py).
+    # gym_pusht/PushT-v0 (gym-pusht's own env, written in lerobot/pusht's format: see pusht/dataset.py).
     env_id: str = ENV_ID
     # Successful demonstrations to write (failed rollouts are left out). Default: 100 from the sampler,
     # or as many as --initial_conditions has entries.
@@ -81,7 +81,7 @@ class GenerateConfig(FanOut):
     shard_size: int = 10
 
     def __post_init__(self) -> None:
-        from lerobot_gcs_push.expert import EXPERTS
+        from lerobot_gcs_push.planning.factory import EXPERTS
         from lerobot_gcs_push.rollout import check_env_id
 
         check_env_id(self.env_id)
@@ -126,7 +126,7 @@ class GenerateConfig(FanOut):
         if self.image_size < 1:
             raise ValueError(f"image_size must be >= 1, got {self.image_size}")
         if scene.frame is not None:
-            from lerobot_gcs_push.pusht_dataset import check_obs_type
+            from lerobot_gcs_push.pusht.dataset import check_obs_type
 
             check_obs_type(self.obs_type)
         elif self.obs_type != "pixels_agent_pos":

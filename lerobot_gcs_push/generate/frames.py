@@ -13,7 +13,7 @@ from lerobot_gcs_push.generate.config import (
     EPISODES_META,
     GenerateConfig,
 )
-from lerobot_gcs_push.pusht_dataset import pusht_feature_keys, pusht_features
+from lerobot_gcs_push.pusht.dataset import pusht_feature_keys, pusht_features
 from lerobot_gcs_push.registration import PUSHT_ENV_ID, SCENES
 from lerobot_gcs_push.scene import (
     Scene,

@@ -25,6 +25,7 @@ from lerobot_gcs_push.generate.frames import (
     read_episode_metadata,
 )
 from lerobot_gcs_push.generate.hub import push_to_hub
+from lerobot_gcs_push.generate.replay import REPLAY_META, START_KEYS, dataset_replay, write_replay
 from lerobot_gcs_push.generate.shards import (
     _init_worker,
     _read_shard,
@@ -33,7 +34,6 @@ from lerobot_gcs_push.generate.shards import (
 )
 from lerobot_gcs_push.generate.workdir import WorkDir
 from lerobot_gcs_push.registration import SCENES, sample_starts
-from lerobot_gcs_push.replay import REPLAY_META, START_KEYS, dataset_replay, write_replay
 from lerobot_gcs_push.scene import (
     load_initial_conditions,
 )

@@ -18,10 +18,10 @@ from lerobot_gcs_push.generate.frames import (
     EpisodeFrames,
     _Writer,
 )
+from lerobot_gcs_push.generate.replay import ReplayActions
 from lerobot_gcs_push.generate.workdir import WorkDir
-from lerobot_gcs_push.pusht_dataset import PushTFrames
+from lerobot_gcs_push.pusht.dataset import PushTFrames
 from lerobot_gcs_push.registration import PUSHT_ENV_ID
-from lerobot_gcs_push.replay import ReplayActions
 from lerobot_gcs_push.scene import (
     episode_seed,
 )
@@ -33,7 +33,7 @@ CRASH_ENV = "GCS_PUSH_TEST_CRASH_DIR"  # tests: a file `episode_<i>` there kills
 
 def _init_worker(cfg_dict: dict, work_path: str, shards_path: str) -> None:
     import lerobot_gcs_push  # noqa: F401  (registers the env)
-    from lerobot_gcs_push.expert import ExpertConfig, make_expert
+    from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
     from lerobot_gcs_push.registration import make_env
 
     cfg = GenerateConfig(**cfg_dict)

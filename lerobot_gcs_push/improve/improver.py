@@ -13,7 +13,6 @@ from pathlib import Path
 from lerobot_gcs_push.checkpoints import export_policy, is_pretrained_dir
 from lerobot_gcs_push.improve.config import _BEFORE_FIELDS, STAGES, ImproveConfig, _canonical, _settings
 from lerobot_gcs_push.improve.state import STATE_FILE, State
-from lerobot_gcs_push.improve_curve import CURVE_FILE, plot_curve
 from lerobot_gcs_push.settings import changed, describe
 
 
@@ -113,7 +112,7 @@ class Improver:
     def train_to(
         self, dst: Path, *, repo_id: str, steps: int, seed: int, lr: float | None, init: str | None, job: str
     ) -> None:
-        from lerobot_gcs_push.training import TrainJob, train
+        from lerobot_gcs_push.improve.training import TrainJob, train
 
         final = train(
             TrainJob(
@@ -222,9 +221,9 @@ class Improver:
         return self.state_dir / f"r{k}" / "replay.json"
 
     def run_collect(self, k: int) -> None:
-        from lerobot_gcs_push.active import CollectConfig, collect
         from lerobot_gcs_push.generate import GenerateConfig, dataset_root
-        from lerobot_gcs_push.replay import REPLAY_META
+        from lerobot_gcs_push.generate.replay import REPLAY_META
+        from lerobot_gcs_push.improve.collect import CollectConfig, collect
 
         counts = (self.cfg.round.hard, self.cfg.round.uniform)
         if any(n and not (p / "runs.jsonl").is_file() for n, p in zip(counts, self.rollouts(k))):
@@ -331,7 +330,7 @@ class Improver:
     def run_decision(self, k: int) -> None:
         """Decided once and recorded before the weights move, so a kill anywhere after is finished the same
         way: copy the candidate in if it ships, then let it go."""
-        from lerobot_gcs_push.shipping import decide, read_validation, score
+        from lerobot_gcs_push.improve.shipping import decide, read_validation, score
 
         rec = self.state.stages[f"r{k}.decision"]
         if "decision" not in rec:
@@ -371,6 +370,8 @@ class Improver:
     # -- the loop --------------------------------------------------------------------------------------
 
     def run(self) -> dict:
+        from lerobot_gcs_push.improve.curve import CURVE_FILE, plot_curve  # here: `python -m` runs the module
+
         cfg = self.cfg
         shipped = any(r.get("shipped") for r in self.state.rounds)
         if cfg.from_policy and not is_pretrained_dir(cfg.policy) and not shipped:

@@ -2,7 +2,7 @@
 the measured state whenever the slider strays from the plan), as a `rollout.Policy` over the env's true
 state in `info` (`slider_pose`, or the box's `box`, and `finger`); the env knows nothing about it.
 
-What differs between scenes is data the scene chooses (`expert.make_expert`): the speeds, and the
+What differs between scenes is data the scene chooses (`factory.make_expert`): the speeds, and the
 `ReplanRule` that says how far the slider may stray where.
 """
 
@@ -91,7 +91,7 @@ TURNING_RULE = ReplanRule(during_push=5.0, before_first_push=5.0, by_next_comman
 
 
 class PlanExpert:
-    """`rollout.Policy` running `planner`'s plans at `fps`. `config` is an `expert.ExpertConfig` (mode,
+    """`rollout.Policy` running `planner`'s plans at `fps`. `config` is a `factory.ExpertConfig` (mode,
     replan_every, replan_tolerance, max_replans)."""
 
     def __init__(

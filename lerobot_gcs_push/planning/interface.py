@@ -1,5 +1,5 @@
 """What every planner is to the rest of the package: a query in (the slider, the finger, optionally a goal),
-one `Plan` out, one error when there is none. Which planner serves a scene is `expert.make_planner`'s choice."""
+one `Plan` out, one error when there is none. Which planner serves a scene is `factory.make_planner`'s choice."""
 
 from __future__ import annotations
 

@@ -62,8 +62,8 @@ def replay(demos: list[dict], progress: bool = True) -> Episodes:
     import gymnasium as gym
     from tqdm.auto import tqdm
 
-    from lerobot_gcs_push.pusht_env import GYM_PUSHT_ID, GYM_PUSHT_STEPS
-    from lerobot_gcs_push.pusht_frame import reset_to_state
+    from lerobot_gcs_push.pusht.env import GYM_PUSHT_ID, GYM_PUSHT_STEPS
+    from lerobot_gcs_push.pusht.frame import reset_to_state
 
     env = gym.make(GYM_PUSHT_ID, obs_type="environment_state_agent_pos", max_episode_steps=GYM_PUSHT_STEPS)
     out: dict[str, list] = {k: [] for k in KEYS}

@@ -3,7 +3,8 @@
 - `plant`: the multibody plant (box and finger on prismatic joints, ground and goal visuals);
 - `camera`: the top-down camera (intrinsics, render engine and lights, world <-> pixel mapping);
 - `collision`: finger-box distance queries on a render-free copy of the plant;
-- `push_sim`: `PushSim`, the controlled, disturbed, rendered diagram that composes them.
+- `push_sim`: `PushSim`, the controlled, disturbed, rendered diagram that composes them;
+- `env`: `GcsPushEnv`, the Gymnasium env over it (made by id through `registration`; not imported here).
 """
 
 from lerobot_gcs_push.sim.camera import TopDownCamera

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_gcs_push.evaluation.success import success_measures
 from lerobot_gcs_push.registration import SCENES
 from lerobot_gcs_push.scene import Scene
-from lerobot_gcs_push.success import success_measures
 
 OUTLINES_ALONG_PATH = 4  # a rotating slider's outlines drawn along a run, its end included
 

@@ -6,7 +6,7 @@ chunks in which the policy lost ground, shows here in the coverage of the goal: 
 slider covers no more of the goal a couple of seconds later is one the policy spent without progress
 (pushing the wrong face, hovering, turning the T away). The runs looked at are the failed ones and the
 successes slower than the expert's on the same start; the states are labelled by the closed-loop expert
-from there (`active.collect`).
+from there (`collect.collect`).
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def expert_times(records: list[dict], gcs_policies) -> dict[tuple, float]:
 
 
 def stall_branch_states(records: list[dict], cfg, scene: Scene, gcs_policies) -> list[dict]:
-    """The states to label, in a deterministic order. `cfg` is an `active.CollectConfig` (its `stall` rule,
+    """The states to label, in a deterministic order. `cfg` is a `collect.CollectConfig` (its `stall` rule,
     `keep_fraction` of the other chunk starts, `max_per_run` spread over time, `seed`). Every record needs its
     `_source` folder, where its trajectory (`trajectory`, written by `gcs-push evaluate`) lies."""
     rule = cfg.stall

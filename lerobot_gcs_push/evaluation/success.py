@@ -1,5 +1,5 @@
 """How an env's runs are scored, named for the tables and figures: its success rule and a looser measure
-beside it. Apart from evaluation/ so that the figures read it without importing the evaluation."""
+beside it."""
 
 from __future__ import annotations
 

@@ -12,11 +12,11 @@ import numpy as np
 from lerobot_gcs_push.planner import GcsPlanner, plannable
 from lerobot_gcs_push.planning import Planner, PlanningError, Speeds
 from lerobot_gcs_push.planning.expert import BOX_RULE, TURNING_RULE, PlanExpert
-from lerobot_gcs_push.pusht_agent import COMMANDS
+from lerobot_gcs_push.pusht.agent import COMMANDS
 
 EXPERTS = ("open-loop", "closed-loop")
 # gym-pusht's block is first order (it stops the moment the push does): no dwell. Its agent is steered onto
-# the plan's points (pusht_agent.PixelActions), so no lead either. In m/s (60 px/m). Commanded with the plan's
+# the plan's points (pusht.agent.PixelActions), so no lead either. In m/s (60 px/m). Commanded with the plan's
 # points at free 3, push 1.5 m/s, the lagging agent cut corners into the T: 4 of 6 starts (seed 77), one
 # with 34 replans; at 1 / 0.5 m/s, seed 2026's first three took 10-27 s and the fourth over 6 min of
 # replanning; steered, at 2 / 1 m/s, seed 77's two failures and one more succeeded in 4-9 s.
@@ -91,7 +91,7 @@ def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=N
         fine_within=fine_within_for(scene) if config.fine_within is None else config.fine_within,
     )
     if scene.frame is not None:
-        from lerobot_gcs_push.pusht_agent import PixelActions
+        from lerobot_gcs_push.pusht.agent import PixelActions
 
         return PixelActions(expert, scene.frame, config.commands, config.lead_actions)
     return expert
@@ -124,7 +124,7 @@ class ExpertConfig:
     replan_every: int = 5
     replan_tolerance: float = 0.03
     max_replans: int = 50
-    # gym-pusht only: what an action is (pusht_agent.PixelActions). "position": the plan's own point
+    # gym-pusht only: what an action is (pusht.agent.PixelActions). "position": the plan's own point
     # `lead_actions` on (None: 3), along a path of bounded acceleration (`PUSHT_POSITION_SPEEDS`); the
     # agent, trailing its command by about 1.5 actions, then rides the plan. "steer": the target that, held
     # `lead_actions` actions (None: 2), lands the PD agent on that point; it inverts the PD, the commands

@@ -8,7 +8,7 @@ import math
 import gymnasium as gym
 import numpy as np
 
-from lerobot_gcs_push.pusht_frame import (
+from lerobot_gcs_push.pusht.frame import (
     ARENA_PX,
     BAR_PX,
     COG_PX,
@@ -48,7 +48,7 @@ class GymPushTTarget(gym.Env):
     ## Starting State
     With no options, gym-pusht's own reset from `seed`. `reset(options={"pusht_state": [ax, ay, bx, by,
     angle]})` starts from a state exactly as `obs_type="state"` reports it (px, radians): the env then reports
-    that same state (gym-pusht's `reset_to_state` would move the block; `pusht_frame.reset_to_state` passes
+    that same state (gym-pusht's `reset_to_state` would move the block; `frame.reset_to_state` passes
     what lands on it). `{"box": [x, y], "finger": [x, y], "heading": h}` does the same in metres (the slider's
     centre of gravity). Agent and block may overlap, as in gym-pusht's own resets.
 

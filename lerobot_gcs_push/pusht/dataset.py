@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lerobot_gcs_push.pusht_frame import ARENA_PX
+from lerobot_gcs_push.pusht.frame import ARENA_PX
 
 PUSHT_FEATURE_KEYS = (
     "observation.image",

@@ -1,7 +1,7 @@
 """The curve of a `gcs-push improve` run, read from its state file: each round's rollout scores (fresh
 initial conditions, GCS beside) placed at the stage hours when the policy they measure became current.
 
-    python -m lerobot_gcs_push.improve_curve STATE_DIR   # writes STATE_DIR/curve.png, prints the points
+    python -m lerobot_gcs_push.improve.curve STATE_DIR   # writes STATE_DIR/curve.png, prints the points
 
 `improve` redraws it after every round's rollouts, so the committed state folder always holds its picture.
 """
@@ -88,7 +88,7 @@ def plot_curve(state: dict, path: Path) -> Path | None:
 def main(argv=None) -> None:
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 1:
-        raise SystemExit("usage: python -m lerobot_gcs_push.improve_curve STATE_DIR")
+        raise SystemExit("usage: python -m lerobot_gcs_push.improve.curve STATE_DIR")
     state_file = Path(args[0]) / "state.json"
     if not state_file.is_file():
         raise SystemExit(f"{state_file} does not exist: give a gcs-push improve --state_dir")
