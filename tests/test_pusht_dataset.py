@@ -186,25 +186,35 @@ def test_generated_episodes_replay_in_a_fresh_gym_pusht(pusht_dataset):
         start_index += n
 
 
+def _replayed(pusht_dataset, name: str, **kwargs):
+    """(folder, config) of a dataset rebuilt from the module's dataset's replay list, beside it."""
+    from lerobot_gcs_push.generate import GenerateConfig
+    from lerobot_gcs_push.generate.replay import REPLAY_META
+
+    home, root, _ = pusht_dataset
+    folder = home / "local" / name
+    cfg = GenerateConfig(
+        env_id=PUSHT_ENV_ID,
+        repo_id=f"local/{name}",
+        root=str(folder),
+        initial_conditions=str(root / REPLAY_META),
+        workers=1,
+        progress=False,
+        **kwargs,
+    )
+    return folder, cfg
+
+
 @pytest.mark.slow
 def test_its_replay_list_rebuilds_it_value_for_value(pusht_dataset):
     """`meta/gcs_push_replay.json` (starts and actions) replayed with no planning: every stored value and
     every video frame as the expert's run wrote them (gym-pusht runs the stored float32 actions)."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from lerobot_gcs_push.generate import GenerateConfig, generate
-    from lerobot_gcs_push.generate.replay import REPLAY_META
+    from lerobot_gcs_push.generate import generate
 
     home, root, report = pusht_dataset
-    copy = home / "local" / "gcs_pusht_replayed"
-    cfg = GenerateConfig(
-        env_id=PUSHT_ENV_ID,
-        repo_id="local/gcs_pusht_replayed",
-        root=str(copy),
-        initial_conditions=str(root / REPLAY_META),
-        workers=1,
-        progress=False,
-    )
+    copy, cfg = _replayed(pusht_dataset, "gcs_pusht_replayed")
     assert cfg.expert == "replay"
     assert generate(cfg).frames == report.frames
     for a, b in zip(_episodes(root), _episodes(copy), strict=True):
@@ -229,16 +239,7 @@ def test_its_keypoint_twin_holds_what_lerobots_pusht_env_gives_with_environment_
     from lerobot_gcs_push.pusht.frame import reset_to_state
 
     home, root, report = pusht_dataset
-    twin = home / "local" / "gcs_pusht_keypoints"
-    cfg = GenerateConfig(
-        env_id=PUSHT_ENV_ID,
-        repo_id="local/gcs_pusht_keypoints",
-        root=str(twin),
-        initial_conditions=str(root / REPLAY_META),
-        obs_type="environment_state_agent_pos",
-        workers=1,
-        progress=False,
-    )
+    twin, cfg = _replayed(pusht_dataset, "gcs_pusht_keypoints", obs_type="environment_state_agent_pos")
     assert generate(cfg).frames == report.frames
     info = json.loads((twin / "meta" / "info.json").read_text())
     assert "observation.image" not in info["features"]
