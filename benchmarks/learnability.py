@@ -2,7 +2,8 @@
 demonstrations, on keypoints, at a fixed budget. A dataset exporter is judged by what policies learn from it.
 
 - The model: `configs/policy/diffusion_pusht_keypoints.json` (LeRobot's DiffusionPolicy on
-  `environment_state_agent_pos`), trained by `lerobot_gcs_push.pusht.keypoint_training` on one thread.
+  `environment_state_agent_pos`), trained as `gcs-push train --config_path=configs/train/pusht_keypoints.json`
+  trains it (`lerobot_gcs_push.pusht.keypoint_training`), on one thread.
 - The data: the pool's first 1000 demonstrations, rebuilt from its replay lists (no planning).
 - The budget: 1.28 M samples (20,000 steps of 64), seed 1000.
 - The judge: `lerobot-eval --env.type=pusht --env.obs_type=environment_state_agent_pos`, 100 episodes of seed
@@ -39,6 +40,7 @@ DEFAULT_POOL = "position"
 EPISODES, STEPS, BATCH, SEED = 1000, 20000, 64, 1000
 JUDGE_SEED, JUDGE_EPISODES = 12000, 100
 OUT = REPO / "experiments" / "pusht" / "learnability"
+CONFIG = REPO / "configs" / "train" / "pusht_keypoints.json"
 
 
 def folder(pool: str) -> Path:
@@ -46,18 +48,20 @@ def folder(pool: str) -> Path:
 
 
 def train_config(pool: str, steps: int = STEPS, episodes: int = EPISODES, work=None):
-    from lerobot_gcs_push.pusht.keypoint_training import KeypointDataConfig, ScheduleConfig, TrainKeypointsConfig
+    """`configs/train/pusht_keypoints.json` (what `gcs-push train` runs) on the pool's lists, its state in
+    the pool's folder."""
+    import draccus
+
+    from lerobot_gcs_push.pusht.keypoint_training import TrainKeypointsConfig
 
     work = Path(work or REPO / "outputs" / "learnability" / pool)
-    return TrainKeypointsConfig(
-        data=KeypointDataConfig(lists=[str(p) for p in POOLS[pool]], episodes=episodes,
-                                cache_dir=str(REPO / "outputs" / "keypoints")),
-        schedule=ScheduleConfig(steps=steps, batch_size=BATCH),
-        preset=str(REPO / "configs" / "policy" / "diffusion_pusht_keypoints.json"),
-        output_dir=str(work / "train"),
-        partial_dir=str(folder(pool) / "partial"),
-        seed=SEED,
-    )  # fmt: skip
+    raw = json.loads(CONFIG.read_text())
+    raw["data"] |= {"lists": [str(p) for p in POOLS[pool]], "episodes": episodes,
+                    "cache_dir": str(REPO / "outputs" / "keypoints")}  # fmt: skip
+    raw["schedule"] |= {"steps": steps, "batch_size": BATCH}
+    raw |= {"preset": str(REPO / raw["preset"]), "output_dir": str(work / "train"),
+            "partial_dir": str(folder(pool) / "partial"), "seed": SEED}  # fmt: skip
+    return draccus.decode(TrainKeypointsConfig, raw)
 
 
 def judge(policy_dir: Path, out: Path, seed: int = JUDGE_SEED, episodes: int = JUDGE_EPISODES) -> dict:

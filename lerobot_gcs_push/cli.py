@@ -18,6 +18,7 @@ from lerobot_gcs_push.evaluation import EvaluateConfig
 from lerobot_gcs_push.generate import GenerateConfig
 from lerobot_gcs_push.improve import ImproveConfig
 from lerobot_gcs_push.improve.collect import CollectConfig
+from lerobot_gcs_push.pusht.keypoint_training import TrainKeypointsConfig
 from lerobot_gcs_push.registration import ENV_ID
 from lerobot_gcs_push.scene import is_finite_number, load_initial_conditions
 from lerobot_gcs_push.shipped import shipped_path
@@ -284,12 +285,24 @@ def run_demo(cfg: DemoConfig) -> None:
     )
 
 
+def run_train(cfg: TrainKeypointsConfig) -> None:
+    from lerobot_gcs_push.pusht.keypoint_training import train
+
+    folder = train(cfg)
+    print(f"saved {folder}; judge it with:")
+    print(
+        f"  lerobot-eval --policy.path={folder} --env.type=pusht --env.obs_type=environment_state_agent_pos "
+        "--eval.n_episodes=100 --eval.batch_size=10 --eval.use_async_envs=false --policy.device=cpu"
+    )
+
+
 COMMANDS: dict[str, tuple[type, Callable, str]] = {
     "plan": (PlanConfig, run_plan, "plan one push task (or a file of them) with GCS"),
     "generate": (GenerateConfig, run_generate, "write GCS demonstrations as a LeRobotDataset (PushT: lerobot/pusht's)"),
     "evaluate": (EvaluateConfig, run_evaluate, "the paper's protocol, with regret, for any set of policies"),
     "collect": (CollectConfig, run_collect, "active data: label the states a policy visited with the expert"),
     "improve": (ImproveConfig, run_improve, "rounds of active data until the policy is robust (resumable)"),
+    "train": (TrainKeypointsConfig, run_train, "a keypoint DiffusionPolicy for gym-pusht on a CPU, from replay lists"),
     "demo": (DemoConfig, run_demo, "the main job on its defaults"),
 }
 

@@ -88,3 +88,21 @@ def test_a_run_goes_on_from_the_small_partial_on_another_machine(tmp_path):
     folder = train(_config(tmp_path, 6, "there", partial), progress=False)
     log = (tmp_path / "there" / "log.jsonl").read_text().splitlines()
     assert folder.is_dir() and [json.loads(line)["step"] for line in log] == [2, 4, 6]  # went on from step 1
+
+
+def test_gcs_push_train_reads_its_config_and_names_what_is_missing(capsys, tmp_path):
+    """`gcs-push train`: no lists is a one-line error; the committed config's lists and preset are there."""
+    import draccus
+
+    from lerobot_gcs_push.cli import main
+
+    assert main(["train"]) == 2
+    assert "data.lists is empty" in capsys.readouterr().err
+    root = Path(__file__).parent.parent
+    cfg = draccus.parse(
+        TrainKeypointsConfig, config_path=str(root / "configs" / "train" / "pusht_keypoints.json"), args=[]
+    )
+    assert cfg.data.episodes == 1000 and all((root / p).is_file() for p in cfg.data.lists[:3])
+    assert (cfg.schedule.steps, cfg.schedule.batch_size) == (20000, 64) and (root / cfg.preset).is_file()
+    assert main(["train", "--data.lists=[nowhere.json]", f"--output_dir={tmp_path / 'out'}"]) == 2
+    assert "no replay list at nowhere.json" in capsys.readouterr().err and not (tmp_path / "out").exists()

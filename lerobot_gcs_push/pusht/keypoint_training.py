@@ -68,6 +68,7 @@ class TrainKeypointsConfig:
     # A lerobot-train config (`configs/policy/`): its `policy` is the model, trained the same way by
     # `lerobot-train --config_path=...` on a GPU.
     preset: str = PRESET
+    # Where the checkpoint (every `save_every` steps, resumed from), the log and `pretrained_model` go.
     output_dir: str = "outputs/train/pusht_keypoints"
     # Also write the small state another machine resumes from here (fp16), at every save; None: not.
     partial_dir: str | None = None
@@ -94,7 +95,9 @@ def policy_config(preset: str):
     import draccus
     from lerobot.policies.diffusion.configuration_diffusion import DiffusionConfig
 
-    path = Path(preset)
+    from lerobot_gcs_push.shipped import shipped_path
+
+    path = Path(shipped_path(preset))  # the shipped preset where it is not under the working folder
     if not path.is_file():
         raise FileNotFoundError(f"no preset at {path}")
     raw = json.loads(path.read_text())
@@ -168,10 +171,9 @@ def train(cfg: TrainKeypointsConfig, progress: bool = True, stop_after_s: float 
     batch_size = sch.batch_size or int(raw.get("batch_size", 64))
     peak = sch.lr if sch.lr is not None else pcfg.optimizer_lr
     warmup = sch.warmup_steps if sch.warmup_steps is not None else pcfg.scheduler_warmup_steps
+    data = keypoint_data.load(cfg.data.lists, cfg.data.episodes, cfg.data.cache_dir, progress)
     out = Path(cfg.output_dir)
     out.mkdir(parents=True, exist_ok=True)
-
-    data = keypoint_data.load(cfg.data.lists, cfg.data.episodes, cfg.data.cache_dir, progress)
     stats = stats_of(data)
     windows = Windows(data, stats, pcfg.n_obs_steps, pcfg.horizon, pcfg.drop_n_last_frames)
 
