@@ -79,7 +79,7 @@ def judge(policy_dir: Path, out: Path, seed: int = JUDGE_SEED, episodes: int = J
         "success": overall["pc_success"] / 100,
         "avg_max_reward": overall["avg_max_reward"],
         "avg_sum_reward": overall["avg_sum_reward"],
-        "episodes": overall["n_episodes"],
+        "judge_episodes": overall["n_episodes"],
         "eval_s": round(time.perf_counter() - t0, 1),
     }
 
