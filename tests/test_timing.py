@@ -62,3 +62,18 @@ def test_a_bounded_schedule_keeps_its_commands_second_difference_under_the_bound
     np.testing.assert_allclose(bounded[-1], [2.0, 0.2])
     free = plan.schedule(10, speeds).commands
     assert np.linalg.norm(np.diff(free, 2, axis=0), axis=1).max() > 0.25
+
+
+def test_without_a_bound_a_schedule_is_linear_interpolation_in_time_even_through_a_segment_of_no_length():
+    """A free leg, a push whose finger does not move while the slider does (no time), and a push: every
+    command and reference pose is np.interp over the hand-computed knot times (1 s, 1 s, 1 s + 2 s), the
+    last knot of an instant winning, as before the acceleration bound existed."""
+    fp = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 0.0], [1.0, 1.0]])
+    sp = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.3, 0.0, 0.2], [0.3, 1.0, 0.2]])
+    plan = Plan("hand", 0.0, None, 0.0, [], sp, fp, [FREE, PUSH, PUSH], np.zeros(3))
+    sched = plan.schedule(10, Speeds(free=1.0, push=0.5, push_dwell_s=0.0, push_lead=0.0))
+    times, t = np.array([0.0, 1.0, 1.0, 3.0]), np.arange(1, 31) / 10
+    expected = np.stack([np.interp(t, times, fp[:, i]) for i in range(2)], axis=1)
+    np.testing.assert_allclose(sched.commands, expected, atol=1e-12)
+    np.testing.assert_allclose(sched.slider, np.stack([np.interp(t, times, sp[:, i]) for i in range(3)], 1), atol=1e-12)
+    assert [str(k) for k in sched.kinds[9:11]] == ["free", "push"]  # t = 1.0 ends the free leg

@@ -218,16 +218,17 @@ class Plan:
         t = np.minimum(np.arange(1, n + 1) / fps, t_knots[-1])
         if not kinds:
             return Schedule(np.repeat(path[:1], n, axis=0), [FREE] * n, np.repeat(slider[:1], n, axis=0))
-        seg, share = timing.where(t)
-        cmds = path[seg] + share[:, None] * (path[seg + 1] - path[seg])
-        poses = slider[seg] + share[:, None] * (slider[seg + 1] - slider[seg])
+        at, share = timing.where(t)
+        cmds = path[at] + share[:, None] * (path[at + 1] - path[at])
+        poses = slider[at] + share[:, None] * (slider[at + 1] - slider[at])
+        seg = np.clip(np.searchsorted(t_knots, t - 1e-12) - 1, 0, len(kinds) - 1)  # a segment's kind: (start, end]
         lead = speeds.push_lead * lag_s * speeds.push
         if lead > 0:
             for a, b in _push_runs(kinds):
                 run = path[a : b + 1]
                 arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(run, axis=0), axis=1))])
                 on = (t > t_knots[a] + 1e-12) & (t < t_knots[b] - 1e-9)  # as the segment kinds: (start, end]
-                done = arc[seg[on] - a] + share[on] * (arc[seg[on] - a + 1] - arc[seg[on] - a])
+                done = arc[at[on] - a] + share[on] * (arc[at[on] - a + 1] - arc[at[on] - a])
                 ramp = np.clip(done / speeds.push_lead_ramp_m, 0.0, 1.0) if speeds.push_lead_ramp_m > 0 else 1.0
                 ahead = done + lead * ramp
                 if speeds.push_dwell_s <= 0:

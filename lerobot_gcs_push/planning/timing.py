@@ -51,12 +51,14 @@ class Timing:
         return float(self.times[-1])
 
     def where(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(segment, share of its length) at each time t (clipped to the path's span)."""
+        """(segment, share of its length) at each time t (clipped to the path's span). At a knot's time the
+        segment that starts there, past any that take no time: the last knot of that instant, as linear
+        interpolation in time gives it."""
         t = np.clip(np.asarray(t, float), 0.0, self.duration)
         n = len(self.lengths)
         if n == 0:
             return np.zeros(len(t), int), np.ones(len(t))
-        seg = np.clip(np.searchsorted(self.times, t - 1e-12) - 1, 0, n - 1)
+        seg = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, n - 1)
         tau = t - self.times[seg]
         a = self.accel if self.accel > 0 else 0.0
         v0, vp, t1, t2 = self._v_in[seg], self._peak[seg], self._t_up[seg], self._t_cruise[seg]
