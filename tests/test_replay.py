@@ -115,5 +115,5 @@ def test_actions_are_written_exactly():
     rng = np.random.default_rng(0)
     edges = np.float32([[0.0, 512.0], [1e-30, 3.4e38], [511.99997, 2**-20], [np.nextafter(np.float32(256), 0), -7.5]])
     actions = np.concatenate([rng.uniform(-600, 600, (500, 2)).astype(np.float32), edges])
-    back = np.float32(json.loads(entry_line({"box": [0, 0], "finger": [1, 1]}, actions))["actions"])
+    back = np.float32(json.loads(entry_line({"box": [0, 0], "finger": [1, 1], "actions": actions}))["actions"])
     assert back.tobytes() == actions.tobytes()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -64,6 +65,10 @@ class GenerateConfig(FanOut):
     # (the T's 8 keypoints as observation.environment_state in its place, for keypoint policies), as
     # LeRobot's `--env.obs_type`. The Drake scenes write pixels_agent_pos.
     obs_type: str = "pixels_agent_pos"
+    # gym-pusht only: DART's noise (Laskey et al. 2017), the std in px of a Gaussian draw added to each
+    # target the env runs, while the dataset records the expert's own target; the replay list holds both
+    # and the draws' seed. 0: none.
+    command_noise_px: float = 0.0
     # Simulated seconds before a rollout counts as failed. Default: the env's (500 s, the paper's; 30 s, that
     # is 300 steps, for gym-pusht, so its episodes succeed within gym-pusht's own limit).
     max_sim_time_s: float | None = None
@@ -115,6 +120,11 @@ class GenerateConfig(FanOut):
                     raise ValueError(f"--expert=replay: initial condition {i}: {err}") from None
             if self.disturbances:
                 raise ValueError("--expert=replay repeats undisturbed episodes: drop --disturbances")
+            if self.command_noise_px:
+                raise ValueError("--expert=replay repeats each entry's own command noise: drop --command_noise_px")
+            for i, ic in enumerate(ics):
+                if "command_noise" in ic and "labels" not in ic:
+                    raise ValueError(f'--expert=replay: initial condition {i} has "command_noise" but no "labels"')
         check_sampler(self.sampler)
         from lerobot_gcs_push.planner import check_method
 
@@ -129,6 +139,10 @@ class GenerateConfig(FanOut):
             from lerobot_gcs_push.pusht.dataset import check_obs_type
 
             check_obs_type(self.obs_type)
+            if not (math.isfinite(self.command_noise_px) and self.command_noise_px >= 0):
+                raise ValueError(f"command_noise_px must be a finite std >= 0 px, got {self.command_noise_px}")
+        elif self.command_noise_px:
+            raise ValueError(f"command_noise_px is gym-pusht's (its targets are px); {self.env_id} takes none")
         elif self.obs_type != "pixels_agent_pos":
             raise ValueError(f"{self.env_id} writes obs_type pixels_agent_pos only, got {self.obs_type!r}")
         if not 0 < self.max_sim_time_s < float("inf"):  # inf would roll a failing start out forever

@@ -25,7 +25,7 @@ from lerobot_gcs_push.generate.frames import (
     read_episode_metadata,
 )
 from lerobot_gcs_push.generate.hub import push_to_hub
-from lerobot_gcs_push.generate.replay import REPLAY_META, START_KEYS, dataset_replay, write_replay
+from lerobot_gcs_push.generate.replay import REPLAY_KEYS, REPLAY_META, START_KEYS, dataset_replay, write_replay
 from lerobot_gcs_push.generate.shards import (
     _init_worker,
     _read_shard,
@@ -101,7 +101,7 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
     t0 = time.perf_counter()
     if cfg.initial_conditions:
         # A file's other keys (a branch state's source) stay out of the jobs.
-        keys = (*START_KEYS, "actions")
+        keys = (*START_KEYS, *REPLAY_KEYS)
         ics = [{k: ic[k] for k in keys if k in ic} for ic in load_initial_conditions(cfg.initial_conditions, scene)]
     else:
         max_attempts = int(np.ceil(cfg.episodes * cfg.max_attempts_factor)) + 10
@@ -205,7 +205,7 @@ def _merge(cfg: GenerateConfig, root: Path, shard_roots: list[Path], metas: list
         "".join(json.dumps({"episode_index": i, **meta}) + "\n" for i, meta in enumerate(metas))
     )
     (staging / SETTINGS_META).write_text(json.dumps(settings, indent=1))
-    write_replay(staging / REPLAY_META, *dataset_replay(staging, metas))
+    write_replay(staging / REPLAY_META, dataset_replay(staging, metas))
     root.parent.mkdir(parents=True, exist_ok=True)
     os.replace(staging, root)
 

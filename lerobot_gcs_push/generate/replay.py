@@ -7,7 +7,8 @@ the default for a list whose entries all carry "actions"), which rebuilds the da
 and the renderer take, with no planning. A long generation is so committed in stages as lists of a few MB.
 
 Each entry is its initial condition (box, finger, heading, pusht_state: what `load_initial_conditions`
-reads) plus "actions", one row per frame, as float32 values written in their shortest exact form. gym-pusht
+reads) plus "actions", one row per frame (an episode recorded under DART's noise adds "command_noise" and
+"labels", the clean commands its dataset holds), as float32 values written in their shortest exact form. gym-pusht
 runs those float32 actions, so its replay repeats every stored value; the Drake envs ran the experts'
 float64 commands, so there the replayed states differ by float32's rounding (5e-7 m) and the images not
 at all.
@@ -22,6 +23,9 @@ import numpy as np
 
 REPLAY_META = "meta/gcs_push_replay.json"
 START_KEYS = ("box", "finger", "heading", "pusht_state")
+# What an entry holds besides its start: the actions the env ran and, for an episode recorded under DART's
+# command noise, that noise and the labels the dataset holds (`pusht.dataset.CommandNoise`).
+REPLAY_KEYS = ("actions", "labels", "command_noise")
 
 
 class ReplayActions:
@@ -58,25 +62,35 @@ def _number(x: np.float32) -> str:
     return np.format_float_positional(x, unique=True, trim="-")
 
 
-def entry_line(start: dict, actions: np.ndarray) -> str:
-    """One entry as one line of JSON: the start's keys, then the actions (exact float32)."""
-    head = json.dumps({k: start[k] for k in START_KEYS if start.get(k) is not None})
-    rows = ",".join(f"[{','.join(_number(v) for v in row)}]" for row in np.asarray(actions, np.float32))
-    return f'{head[:-1]}, "actions": [{rows}]}}'
+def _rows(actions) -> str:
+    return ",".join(f"[{','.join(_number(v) for v in row)}]" for row in np.asarray(actions, np.float32))
 
 
-def write_replay(path: Path, starts: list[dict], actions: list[np.ndarray]) -> None:
+def entry_line(entry: dict) -> str:
+    """One entry as one line of JSON: the start's keys, then the actions (exact float32) and, for a DART
+    episode, its noise and labels."""
+    head = {k: entry[k] for k in START_KEYS if entry.get(k) is not None}
+    if entry.get("command_noise") is not None:
+        head["command_noise"] = entry["command_noise"]
+    line = f'{json.dumps(head)[:-1]}, "actions": [{_rows(entry["actions"])}]'
+    if entry.get("labels") is not None:
+        line += f', "labels": [{_rows(entry["labels"])}]'
+    return line + "}"
+
+
+def write_replay(path: Path, entries: list[dict]) -> None:
     """The list, one episode a line (so that a list grown by a later stage diffs by its new lines)."""
-    if len(starts) != len(actions):
-        raise ValueError(f"{len(starts)} starts but {len(actions)} action lists")
-    lines = ",\n".join(entry_line(s, a) for s, a in zip(starts, actions))
+    lines = ",\n".join(entry_line(e) for e in entries)
     Path(path).write_text(f"[\n{lines}\n]\n")
 
 
-def dataset_replay(root: Path, metas: list[dict]) -> tuple[list[dict], list[np.ndarray]]:
-    """The starts (from the episodes' metadata, in episode order) and actions (from the dataset's own data
-    files) of a finished dataset."""
+def dataset_replay(root: Path, metas: list[dict]) -> list[dict]:
+    """Each episode of a finished dataset as a list entry: its start (from the episodes' metadata, in
+    episode order) and actions (from the dataset's own data files). A DART episode's stored actions are its
+    labels; what its env ran follows from them and its noise (`CommandNoise.commands_run`)."""
     import pyarrow.parquet as pq
+
+    from lerobot_gcs_push.pusht.dataset import CommandNoise
 
     tables = [
         pq.read_table(f, columns=["episode_index", "frame_index", "action"])
@@ -93,8 +107,16 @@ def dataset_replay(root: Path, metas: list[dict]) -> tuple[list[dict], list[np.n
     for i, meta in enumerate(metas):
         if counts[i] != meta["num_frames"]:
             raise ValueError(f"episode {i} of {root} has {counts[i]} frames, its metadata says {meta['num_frames']}")
-    actions = np.split(action[order], np.cumsum(counts)[:-1])
-    return [start_of(meta) for meta in metas], actions
+    entries = []
+    for meta, stored in zip(metas, np.split(action[order], np.cumsum(counts)[:-1])):
+        entry = start_of(meta)
+        if "command_noise" in meta:
+            noise = CommandNoise.of(meta["command_noise"])
+            entry |= {"command_noise": noise.spec(), "actions": noise.commands_run(stored), "labels": stored}
+        else:
+            entry["actions"] = stored
+        entries.append(entry)
+    return entries
 
 
 def start_of(meta: dict) -> dict:

@@ -20,7 +20,7 @@ from lerobot_gcs_push.generate.frames import (
 )
 from lerobot_gcs_push.generate.replay import ReplayActions
 from lerobot_gcs_push.generate.workdir import WorkDir
-from lerobot_gcs_push.pusht.dataset import PushTFrames
+from lerobot_gcs_push.pusht.dataset import CommandNoise, PushTFrames
 from lerobot_gcs_push.registration import PUSHT_ENV_ID
 from lerobot_gcs_push.scene import (
     episode_seed,
@@ -111,11 +111,17 @@ def _run_episode(job: tuple[int, dict]) -> dict:
     index, ic = job
     env, expert, cfg = _WORKER["env"], _WORKER["expert"], _WORKER["cfg"]
     pusht = cfg.env_id == PUSHT_ENV_ID  # lerobot/pusht's frames, recorded from the env's own steps
-    frames = PushTFrames(env, cfg.obs_type) if pusht else EpisodeFrames(env.scene)
-    if cfg.expert == "replay":
-        expert.load(ic["actions"])
-    t0 = time.perf_counter()
     seed = episode_seed(cfg.seed, index)
+    noise, expected_run = None, None
+    if cfg.expert == "replay" and "command_noise" in ic:  # a DART list: its labels again, its noise again
+        noise, expected_run = CommandNoise.of(ic["command_noise"]), ic["actions"]
+        expert.load(ic["labels"])
+    elif cfg.expert == "replay":
+        expert.load(ic["actions"])
+    elif cfg.command_noise_px > 0:
+        noise = CommandNoise(cfg.command_noise_px, seed)
+    frames = PushTFrames(env, cfg.obs_type, noise, expected_run) if pusht else EpisodeFrames(env.scene)
+    t0 = time.perf_counter()
     result = rollout(
         frames.env if pusht else env,
         expert,
@@ -147,6 +153,8 @@ def _run_episode(job: tuple[int, dict]) -> dict:
         meta |= {"heading_initial": ic.get("heading", 0.0), "coverage": result["coverage"]}
     if ic.get("pusht_state") is not None:  # gym-pusht's start, as its obs_type="state" reports it
         meta["pusht_state_initial"] = [float(v) for v in ic["pusht_state"]]
+    if noise is not None:
+        meta["command_noise"] = noise.spec()
     arrays = frames.arrays() if result["success"] else {}
     # The worker compresses and saves its own episode; only the metadata travels back.
     _WORKER["work"].save({"meta": meta, "arrays": arrays})

@@ -14,6 +14,8 @@ success, and done (the episode's last frame, which a kept episode reaches by suc
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from lerobot_gcs_push.pusht.frame import ARENA_PX
@@ -66,14 +68,62 @@ def pusht_features(image_size: int = 96, obs_type: str = "pixels_agent_pos") -> 
     }
 
 
+@dataclass(frozen=True)
+class CommandNoise:
+    """DART's noise (Laskey et al. 2017): the env runs each command plus a Gaussian draw of `std_px` a
+    coordinate, while the dataset records the command itself. The states then stray from the expert's path
+    as a policy's would, and every label is the closed-loop expert's correction from where it is.
+
+    The draws are legacy `RandomState(seed)`'s normals, a stream NumPy keeps fixed across versions: the
+    first n rows are the same whether drawn for one step or for a whole episode, so the commands run are
+    exactly `commands_run` of the labels, here and in any replay."""
+
+    std_px: float
+    seed: int
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.std_px) and self.std_px >= 0):
+            raise ValueError(f"command noise must be a finite std >= 0 px, got {self.std_px}")
+        if not 0 <= int(self.seed) < 2**32:
+            raise ValueError(f"command noise seed must be in [0, 2**32), got {self.seed}")
+
+    @classmethod
+    def of(cls, spec: dict) -> CommandNoise:
+        """From a replay entry's or an episode's "command_noise" record."""
+        try:
+            return cls(float(spec["std_px"]), int(spec["seed"]))
+        except (KeyError, TypeError, ValueError):
+            raise ValueError(f'"command_noise" must be {{"std_px": s, "seed": n}}, got {spec!r}') from None
+
+    def spec(self) -> dict:
+        return {"std_px": self.std_px, "seed": int(self.seed)}
+
+    def draws(self, n: int) -> np.ndarray:
+        return np.random.RandomState(int(self.seed)).normal(0.0, self.std_px, (n, 2))
+
+    def commands_run(self, labels: np.ndarray) -> np.ndarray:
+        """What the env ran for each recorded command: label plus draw, clipped to the arena, as float32."""
+        labels = np.asarray(labels, np.float32).reshape(-1, 2)
+        return _run_target(labels.astype(np.float64) + self.draws(len(labels)))
+
+
+def _run_target(target: np.ndarray) -> np.ndarray:
+    """A target as gym-pusht is given it here: clipped to the arena, rounded to float32 (what is stored)."""
+    return np.clip(target, 0.0, ARENA_PX).astype(np.float32)
+
+
 class PushTFrames:
     """Records a gym-pusht rollout as lerobot/pusht's frames: pass `frames.env` to `rollout` in place of the
     env. Each step stores the observation the action was chosen from, the action as the env ran it (clipped
     to the arena and rounded to float32, so that replaying the stored actions repeats the episode exactly)
-    and what that step returned. `obs_type` must be the env's."""
+    and what that step returned. `obs_type` must be the env's.
 
-    def __init__(self, env, obs_type: str = "pixels_agent_pos"):
-        self.env = _Recording(env, self)
+    With `noise` (DART), the env runs the action plus the noise's draw for that step and the action is what
+    is stored; `expected_run` (a replayed list's "actions") is then checked step by step against what ran,
+    so a list replays exactly or says where it does not."""
+
+    def __init__(self, env, obs_type: str = "pixels_agent_pos", noise: CommandNoise | None = None, expected_run=None):
+        self.env = _Recording(env, self, noise, expected_run)
         self.keys = pusht_feature_keys(obs_type)
         self.frames: dict[str, list] = {k: [] for k in self.keys}
 
@@ -97,24 +147,36 @@ class PushTFrames:
 
 
 class _Recording:
-    """The env, with each step recorded into `PushTFrames`; everything else is the env's."""
+    """The env, with each step recorded into `PushTFrames` (and the command noise added); everything else is
+    the env's."""
 
-    def __init__(self, env, frames: PushTFrames):
+    def __init__(self, env, frames: PushTFrames, noise: CommandNoise | None, expected_run):
         self._env, self._frames, self._obs = env, frames, None
+        self._noise, self._draws, self._t = noise, None, 0
+        self._expected = None if expected_run is None else np.asarray(expected_run, np.float32).reshape(-1, 2)
 
     def __getattr__(self, name):
         return getattr(self._env, name)
 
     def reset(self, **kwargs):
         obs, info = self._env.reset(**kwargs)
-        self._obs = obs
+        self._obs, self._t = obs, 0
+        if self._noise is not None:  # every step's draw at once: the stream's prefix is the same
+            self._draws = self._noise.draws(int(getattr(self._env, "_max_episode_steps", 0)) or 1000)
         return obs, info
 
     def step(self, action):
         target = np.asarray(action, np.float64)
+        run = target
         if target.shape == (2,) and np.all(np.isfinite(target)):  # else the env's own error
-            target = np.clip(target, 0.0, ARENA_PX).astype(np.float32)
-        obs, reward, terminated, truncated, info = self._env.step(target)
+            target = _run_target(target)
+            run = target if self._noise is None else _run_target(target.astype(np.float64) + self._draws[self._t])
+            if self._expected is not None and not (
+                self._t < len(self._expected) and np.array_equal(run, self._expected[self._t])
+            ):
+                raise ValueError(f"replay: step {self._t} ran {run.tolist()}, the list's actions differ")
+        obs, reward, terminated, truncated, info = self._env.step(run)
+        self._t += 1
         done = bool(terminated or truncated)
         self._frames._record(self._obs, target, float(reward), done, bool(info["is_success"]))
         self._obs = obs

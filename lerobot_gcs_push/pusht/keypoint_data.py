@@ -1,7 +1,7 @@
 """gym-pusht demonstrations as LeRobot's keypoint observations, rebuilt from replay lists with no planning.
 
 A replay list (`gcs-push generate`'s `meta/gcs_push_replay.json`) holds each episode's start and the float32
-targets gym-pusht ran. Replayed in gym-pusht with `obs_type="environment_state_agent_pos"`, the env gives
+targets gym-pusht ran (and, for DART's noisy episodes, the clean labels that are learnt). Replayed in gym-pusht with `obs_type="environment_state_agent_pos"`, the env gives
 exactly what LeRobot's `pusht` env maps to `observation.state` (the agent, px) and
 `observation.environment_state` (the T's 8 keypoints, 16 values, px); each episode must end at the success
 it was recorded with, or the list does not belong to this gym-pusht.
@@ -18,6 +18,9 @@ import numpy as np
 
 STATE, ENV_STATE, ACTION = "observation.state", "observation.environment_state", "action"
 KEYS = (STATE, ENV_STATE, ACTION)
+# Part of the cache's key: arrays replayed before the float32 targets were run exactly (2026-12-07) differ
+# by up to 3e-5 px and are not reused.
+REPLAY_VERSION = "2"
 
 
 @dataclass
@@ -71,11 +74,16 @@ def replay(demos: list[dict], progress: bool = True) -> Episodes:
     for k, demo in enumerate(tqdm(demos, desc="replaying", unit="episode", disable=not progress)):
         obs, _ = env.reset(options={"reset_to_state": reset_to_state(demo["pusht_state"])})
         success = False
-        for action in demo["actions"]:
+        # A DART episode's env ran its "actions" (labels plus noise); what is learnt is its "labels".
+        labels = demo.get("labels", demo["actions"])
+        if len(labels) != len(demo["actions"]):
+            raise ValueError(f"demonstration {k}: {len(labels)} labels for {len(demo['actions'])} actions")
+        for action, label in zip(demo["actions"], labels):
             out[STATE].append(np.asarray(obs["agent_pos"], np.float32))
             out[ENV_STATE].append(np.asarray(obs["environment_state"], np.float32))
-            out[ACTION].append(np.asarray(action, np.float32))
-            obs, _, _, _, info = env.step(np.asarray(action, np.float64))
+            out[ACTION].append(np.asarray(label, np.float32))
+            # The float32 the list stores: its shortest decimal read as float64 would be another target.
+            obs, _, _, _, info = env.step(np.asarray(action, np.float32).astype(np.float64))
             success = bool(info["is_success"])
         if not success:
             raise ValueError(f"demonstration {k} did not end at its success on replay: not this gym-pusht's list")
@@ -87,7 +95,7 @@ def replay(demos: list[dict], progress: bool = True) -> Episodes:
 def load(paths, episodes: int | None = None, cache_dir=None, progress: bool = True) -> Episodes:
     """`replay` of the lists, kept in `cache_dir` under the hash of what was replayed (a rebuild is minutes)."""
     demos = read_lists(paths, episodes)
-    key = hashlib.sha256(json.dumps(demos, sort_keys=True).encode()).hexdigest()[:16]
+    key = hashlib.sha256((REPLAY_VERSION + json.dumps(demos, sort_keys=True)).encode()).hexdigest()[:16]
     cached = Path(cache_dir) / f"keypoints_{key}.npz" if cache_dir else None
     if cached is not None and cached.is_file():
         with np.load(cached) as z:
