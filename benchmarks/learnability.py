@@ -10,7 +10,7 @@ demonstrations, on keypoints, at a fixed budget. A dataset exporter is judged by
   JUDGE_SEED (fixed on 2026-12-07 before any run; no other choice uses it).
 
 About 1.5 hours on a quiet core, so it runs in stages: each ends after `--stage_minutes`, its small state
-(fp16 weights, EMA and Adam's second moments) in `experiments/pusht/learnability/<pool>/partial` to commit;
+(fp16 weights, EMA and Adam's second moments) in `experiments/pusht/learnability/v2/<pool>/partial` to commit;
 the same command on any machine goes on from there, and judges once the budget is spent.
 
     python -m benchmarks.run --only learnability                      # the default pool, to the end
@@ -39,7 +39,10 @@ POOLS = {
 DEFAULT_POOL = "position"
 EPISODES, STEPS, BATCH, SEED = 1000, 20000, 64, 1000
 JUDGE_SEED, JUDGE_EPISODES = 12000, 100
-OUT = REPO / "experiments" / "pusht" / "learnability"
+# v2 (2026-12-07): the trainer's action chunks start at the first observed frame, as LeRobot's do (v1's
+# started a frame later, so the policy ran each action one frame early); v1's records stay in git history.
+VERSION = "v2"
+OUT = REPO / "experiments" / "pusht" / "learnability" / VERSION
 CONFIG = REPO / "configs" / "train" / "pusht_keypoints.json"
 
 
@@ -54,7 +57,7 @@ def train_config(pool: str, steps: int = STEPS, episodes: int = EPISODES, work=N
 
     from lerobot_gcs_push.pusht.keypoint_training import TrainKeypointsConfig
 
-    work = Path(work or REPO / "outputs" / "learnability" / pool)
+    work = Path(work or REPO / "outputs" / "learnability" / VERSION / pool)
     raw = json.loads(CONFIG.read_text())
     raw["data"] |= {"lists": [str(p) for p in POOLS[pool]], "episodes": episodes,
                     "cache_dir": str(REPO / "outputs" / "keypoints")}  # fmt: skip
@@ -87,7 +90,7 @@ def judge(policy_dir: Path, out: Path, seed: int = JUDGE_SEED, episodes: int = J
 def run(pool: str = DEFAULT_POOL, stage_minutes: float | None = None, steps: int = STEPS,
         episodes: int = EPISODES, judge_episodes: int = JUDGE_EPISODES) -> dict:  # fmt: skip
     """Train the pool's policy to the budget (or for one stage), then judge it; the record lands in
-    `experiments/pusht/learnability/<pool>/result.json`."""
+    `experiments/pusht/learnability/v2/<pool>/result.json`."""
     from lerobot_gcs_push.pusht.keypoint_training import train
 
     cfg = train_config(pool, steps, episodes)

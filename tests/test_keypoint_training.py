@@ -106,3 +106,40 @@ def test_gcs_push_train_reads_its_config_and_names_what_is_missing(capsys, tmp_p
     assert (cfg.schedule.steps, cfg.schedule.batch_size) == (20000, 64) and (root / cfg.preset).is_file()
     assert main(["train", "--data.lists=[nowhere.json]", f"--output_dir={tmp_path / 'out'}"]) == 2
     assert "no replay list at nowhere.json" in capsys.readouterr().err and not (tmp_path / "out").exists()
+
+
+def test_training_windows_are_what_lerobot_dataset_gives_the_diffusion_policy(tmp_path):
+    """The oracle is LeRobot itself: a LeRobotDataset of the same frames, queried with the diffusion
+    policy's own delta indices, gives each sample's observations, actions and padding; the trainer's windows
+    must be the same (the action chunk starts at the first observed frame, t - 1, not at t)."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from lerobot_gcs_push.pusht.keypoint_training import Windows, policy_config
+
+    pcfg, _ = policy_config(PRESET)
+    rng = np.random.default_rng(0)
+    lengths = [13, 9]  # the second shorter than the horizon: padding at both ends
+    arrays = {k: rng.normal(size=(sum(lengths), d)).astype(np.float32) for k, d in
+              (("observation.state", 2), ("observation.environment_state", 16), ("action", 2))}  # fmt: skip
+    data = keypoint_data.Episodes(arrays, np.cumsum(lengths))
+    unit = {k: {"min": np.full(v.shape[1], -1.0), "max": np.full(v.shape[1], 1.0)} for k, v in arrays.items()}
+    feats = {k: {"dtype": "float32", "shape": (v.shape[1],), "names": None} for k, v in arrays.items()}
+    ds = LeRobotDataset.create("local/windows", fps=10, root=tmp_path / "ds", features=feats, use_videos=False)
+    for s, e in zip(data.starts(), data.ends):
+        for t in range(s, e):
+            ds.add_frame({k: v[t] for k, v in arrays.items()} | {"task": "push"})
+        ds.save_episode()
+    ds.finalize()
+    deltas = {k: [d / 10 for d in pcfg.observation_delta_indices] for k in ("observation.state", "observation.environment_state")}
+    deltas["action"] = [d / 10 for d in pcfg.action_delta_indices]
+    lerobot = LeRobotDataset("local/windows", root=tmp_path / "ds", delta_timestamps=deltas)
+    windows = Windows(data, unit, pcfg.n_obs_steps, pcfg.horizon, pcfg.drop_n_last_frames)
+    # MIN_MAX over [-1, 1] leaves values as they are (to float32 rounding).
+    assert len(windows) == sum(max(n - pcfg.drop_n_last_frames, 1) for n in lengths)
+    batch = windows.batch(np.arange(len(windows)))
+    for row, t in enumerate(windows.t):
+        item = lerobot[int(t)]
+        for key in ("observation.state", "observation.environment_state", "action"):
+            np.testing.assert_allclose(batch[key][row].numpy(), item[key].numpy(), atol=1e-6, err_msg=f"{key} at {t}")
+        assert batch["action_is_pad"][row].tolist() == item["action_is_pad"].tolist(), t
+    assert batch["action_is_pad"][:, 0].any() and batch["action_is_pad"][:, -1].any()

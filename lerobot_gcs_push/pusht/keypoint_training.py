@@ -120,7 +120,9 @@ def normalise(x: np.ndarray, stats: dict) -> np.ndarray:
 class Windows:
     """LeRobot's training samples of the episodes: for each frame t not among an episode's last
     `drop_n_last_frames`, the `n_obs` observations up to t (the first repeated before the start) and the
-    `horizon` actions from t (the last repeated past the end, marked as padding)."""
+    `horizon` actions from t - (n_obs - 1), the first observed frame's (`DiffusionConfig.action_delta_indices`:
+    at inference LeRobot runs the chunk from its index n_obs - 1, the action at t). Actions outside the
+    episode repeat its first or last and are marked as padding, as LeRobotDataset marks them."""
 
     def __init__(self, data: keypoint_data.Episodes, stats: dict, n_obs: int, horizon: int, drop_last: int):
         import torch
@@ -141,10 +143,10 @@ class Windows:
 
         t, first, last = self.t[rows, None], self.first[rows, None], self.last[rows, None]
         obs_i = np.clip(t + np.arange(-self.n_obs + 1, 1), first, last)
-        act_i = t + np.arange(self.horizon)
+        act_i = t + np.arange(-self.n_obs + 1, -self.n_obs + 1 + self.horizon)
         out = {k: v[torch.from_numpy(obs_i)] for k, v in self.obs.items()}
-        out[ACTION] = self.action[torch.from_numpy(np.minimum(act_i, last))]
-        out["action_is_pad"] = torch.from_numpy(act_i > last)
+        out[ACTION] = self.action[torch.from_numpy(np.clip(act_i, first, last))]
+        out["action_is_pad"] = torch.from_numpy((act_i < first) | (act_i > last))
         return out
 
 
