@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from lerobot_gcs_push.scene.kinds import TASK, SliderKind, kind_of  # noqa: F401 (TASK: its users import it here)
 from lerobot_gcs_push.shapes import PIVOTS, SliderShape, square, tee
 
 if TYPE_CHECKING:
@@ -124,6 +125,11 @@ class Scene:
             raise ValueError(f"Scene.slider {self.slider!r} must rotate: set rotates=True")
 
     # Derived quantities: computed here once so that no module re-derives them differently.
+    @property
+    def kind(self) -> SliderKind:
+        """What the consumers ask of the slider (`scene.kinds`): they do not test which slider it is."""
+        return kind_of(self)
+
     @cached_property
     def shape(self) -> SliderShape:
         if self.slider == "box":
@@ -186,7 +192,7 @@ class Scene:
         that the finger can still pass around a slider at the region's edge at any heading. The other way
         (shrinking the sampling region to keep the view) would give the T less room than the box to move.
         """
-        return self.shape.r_max if self.rotates else self.box_half
+        return self.kind.extent(self)
 
     @property
     def view_half_width(self) -> float:
@@ -205,14 +211,12 @@ class Scene:
     @property
     def task(self) -> str:
         """The language instruction stored with every frame."""
-        if not self.rotates:
-            return TASK
-        return f"Push the red {'T' if self.slider == 'tee' else 'box'} onto the green outline."
+        return self.kind.task(self)
 
     def with_goal(self, goal) -> Scene:
         """The scene with goal (x, y), or (x, y, heading) for a rotating slider."""
         if len(goal) == 3:
-            if not self.rotates:
+            if self.kind.pose_size != 3:
                 raise ValueError(f"a goal heading needs a rotating slider, got goal {list(goal)}")
             return dataclasses.replace(self, goal=(float(goal[0]), float(goal[1])), goal_heading=float(goal[2]))
         return dataclasses.replace(self, goal=(float(goal[0]), float(goal[1])))
@@ -253,7 +257,7 @@ class Scene:
         finger = _vector2(finger, f"{what}: finger")
         if not is_finite_number(heading):
             raise ValueError(f"{what}: heading must be a finite number of radians, got {heading!r}")
-        if heading != 0.0 and not self.rotates:
+        if self.kind.refuses_heading(heading):
             raise ValueError(f"{what}: heading {heading} given, but this scene's slider cannot rotate")
         box_limit = self.box_limit if box_limit is None else box_limit
         if np.max(np.abs(box)) > box_limit + 1e-9:
@@ -274,7 +278,7 @@ class Scene:
         """`validate_state` of an initial condition's entry (`load_initial_conditions`). gym-pusht's own
         resets may put the agent inside the T, so a scene with a pixel frame lets the finger overlap; its
         agent is checked in the px it was given."""
-        if self.frame is not None and "pusht_state" in ic:
+        if self.kind.pixel_starts and "pusht_state" in ic:
             (u, v), limit = ic["pusht_state"][:2], self.finger_limit
             lo, hi = self.frame.to_px([-limit, limit]), self.frame.to_px([limit, -limit])  # y flips
             if not (lo[0] <= u <= hi[0] and lo[1] <= v <= hi[1]):
@@ -283,7 +287,7 @@ class Scene:
                     f"[{lo[0]:.0f}, {hi[0]:.0f}] px on both axes"
                 )
         return self.validate_state(
-            ic["box"], ic["finger"], heading=ic.get("heading", 0.0), what=what, allow_overlap=self.frame is not None
+            ic["box"], ic["finger"], heading=ic.get("heading", 0.0), what=what, allow_overlap=self.kind.pixel_starts
         )
 
     def box_goal_distance(self, box) -> float:
@@ -311,7 +315,6 @@ def _vector2(value, what: str) -> np.ndarray:
     return arr
 
 
-TASK = "Push the red box onto the green goal."  # the language instruction stored with every frame
 SAMPLERS = ("sobol", "uniform", "hard", "hard_v2")
 HARD_KINDS = ("goal_side", "corner", "tiny_push", "edge")
 # `hard` stays as it was (its seeded sets are the test and validation sets on record); `hard_v2` adds the
@@ -364,7 +367,7 @@ def sample_initial_conditions(
 
     A target with its own resets (gym-pusht) draws them instead: `registration.sample_starts`.
 
-    A rotating slider (`scene.rotates`) adds a fifth coordinate, its heading, uniform in [-pi, pi) (from
+    A rotating slider (its kind's `pose_size` 3) adds a fifth coordinate, its heading, uniform in [-pi, pi) (from
     the same Sobol or uniform stream), and `collides(box, finger, heading)` gets it. The hard families
     are the box's (they align the finger with axis-aligned faces) and refuse a rotating slider.
     """
@@ -374,7 +377,7 @@ def sample_initial_conditions(
     if collides is None:
         collides = lambda b, f, h=0.0: scene.finger_box_gap(b, f, h) < 0  # noqa: E731
     out: list[InitialCondition] = []
-    if sampler in HARD_SAMPLERS and scene.rotates:
+    if sampler in HARD_SAMPLERS and not scene.kind.hard_starts:
         raise ValueError(
             f"the {sampler!r} sampler's families are for the box that cannot rotate: choose 'sobol' or 'uniform'"
         )
@@ -389,18 +392,14 @@ def sample_initial_conditions(
                     break
             out.append(InitialCondition(tuple(map(float, box)), tuple(map(float, finger)), kind))
         return out
-    for point in _unit_points(sampler, seed, 5 if scene.rotates else 4):
+    for point in _unit_points(sampler, seed, 2 + scene.kind.pose_size):
         box = (2 * point[:2] - 1) * scene.box_init_half_width
         finger = (2 * point[2:4] - 1) * scene.finger_init_half_width
-        if scene.rotates:
-            heading = float(2 * math.pi * point[4] - math.pi)
-            if collides(box, finger, heading):
-                continue
-            out.append(InitialCondition(tuple(map(float, box)), tuple(map(float, finger)), heading=heading))
-        elif collides(box, finger):
+        turn = [float(2 * math.pi * point[4] - math.pi)] if len(point) == 5 else []  # a turning slider's heading
+        if collides(box, finger, *turn):
             continue
-        else:
-            out.append(InitialCondition(tuple(map(float, box)), tuple(map(float, finger))))
+        heading = turn[0] if turn else None
+        out.append(InitialCondition(tuple(map(float, box)), tuple(map(float, finger)), heading=heading))
         if len(out) == n:
             break
     return out
@@ -524,7 +523,7 @@ def load_initial_conditions(path, scene: Scene | None = None) -> list[dict]:
 def _pusht_entry(path, i: int, item: dict, scene: Scene | None) -> dict:
     from lerobot_gcs_push.pusht.frame import check_pusht_state
 
-    if scene is None or scene.frame is None:
+    if scene is None or not scene.kind.pixel_starts:
         raise ValueError(f"{str(path)!r} entry {i}: a pusht_state is gym-pusht's: use --env_id=gym_pusht/PushT-v0")
     try:
         state = check_pusht_state(item["pusht_state"])

@@ -1,0 +1,291 @@
+"""One object per slider kind: what every consumer of a scene would otherwise branch on.
+
+Three kinds, chosen by the scene (`Scene.kind`): the paper's box, which cannot turn (`FixedBox`); a slider
+that turns in the Drake sim, the box on a yaw joint or the T (`TurningSlider`); gym-pusht's own T, driven in
+its pixels (`GymPushT`). Each owns its state's layout, its success rule and reward, what a run's record keeps
+of it, the samplers and planner methods it accepts, and its expert: speeds, replan rule, planner.
+
+Every env reports the same `info` layout: `slider_pose` is always [x, y, heading] (heading 0 for the box, as
+gym-pusht always reports its block's pose), beside `box` (x, y) and `finger`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from lerobot_gcs_push.planning.plan import Speeds
+from lerobot_gcs_push.planning.replan import BOX_RULE, TURNING_RULE
+
+if TYPE_CHECKING:
+    from lerobot_gcs_push.planning import Planner
+    from lerobot_gcs_push.scene import Scene
+
+TASK = "Push the red box onto the green goal."  # the box's language instruction, stored with every frame
+
+# A slider that turns in the Drake sim: the box's push speed and lead, no dwell: its plans chain pushes, and the
+# closed-loop expert replans where a push ended elsewhere. The lead builds up over its own length (0.34 m),
+# and the finger's sideways miss is steered out (experiments/rotation/README.md, "the finger gives way").
+# Free motion at 3 m/s: every replan takes the finger round the slider again, and at the box's 1 m/s a T
+# from the arena's edge spent half its 60 s in free motion (5 of the bench's 50 starts ran out of time);
+# at 3 m/s all 5 succeeded, and the rotating box's episodes were 4.9 s shorter on average
+# (experiments/rotation/README.md, "Free motion at 3 m/s").
+TURNING_SPEEDS = Speeds(free=3.0, push_dwell_s=0.0, push_lead_ramp_m=0.34, push_lateral_gain=1.0)
+# gym-pusht's block is first order (it stops the moment the push does): no dwell. Its agent is steered onto
+# the plan's points (pusht.agent.PixelActions), so no lead either. In m/s (60 px/m). Commanded with the plan's
+# points at free 3, push 1.5 m/s, the lagging agent cut corners into the T: 4 of 6 starts (seed 77), one
+# with 34 replans; at 1 / 0.5 m/s, seed 2026's first three took 10-27 s and the fourth over 6 min of
+# replanning; steered, at 2 / 1 m/s, seed 77's two failures and one more succeeded in 4-9 s.
+PUSHT_SPEEDS = Speeds(free=2.0, approach=1.0, push=1.0, retreat=2.0, push_dwell_s=0.0, push_lead=0.0)
+# gym-pusht's position commands: the plan's path with its acceleration bounded (m/s^2, `planning.timing`), so
+# that the commands a policy imitates have no kicks (experiments/pusht/README.md, "Imitable commands").
+PUSHT_POSITION_SPEEDS = replace(PUSHT_SPEEDS, accel=4.0)
+# And judged at twice the turning slider's shares: the agent rides the plan within an action but not on its
+# points, and at the turning rule's tolerance the T strayed past it after pushes twice as often as when
+# steered (22 replans against 11 on 10 starts), every replan a stop and a restart. On 20 tuning starts
+# (seeds 11820-11839) position commands led 3 actions at 4 m/s^2: 20 / 20, 84 plans, commands' second
+# difference 1.54-1.72x the agent's own (p90); judged at twice the shares: 20 / 20, 52 plans (the steered
+# expert: 57), 1.37-1.47x (experiments/pusht/README.md, "Imitable commands").
+PUSHT_POSITION_RULE = replace(TURNING_RULE, during_push=10.0, before_first_push=10.0, between_pushes=2.0)
+# How near its goal a T is corrected by single pushes (`SliderKind.fine_within`).
+TEE_FINE_WITHIN = 0.25
+
+
+class SliderKind:
+    """What a scene's consumers ask of its slider. Its answers are the paper's box's (`FixedBox`); the kinds
+    that turn override them."""
+
+    name = ""
+    pose_size = 2  # the planner's slider state: [x, y]; a slider that turns adds its heading
+    state_names = ("box_x", "box_y")  # the slider's columns of a dataset's state, after the finger's
+    trajectory_keys = ("finger", "box")  # what a run's saved trajectory holds, one row per step
+    methods = ("relaxation", "micp")  # the planner's methods it accepts
+    default_expert = "open-loop"  # the paper's: one plan, executed
+    cost_to_go = True  # the box planner scores any state (regret, active data)
+    hard_starts = True  # the hard samplers' families (`scene.HARD_SAMPLERS`) are drawn for it
+    goals_anywhere = True  # a plan may go to any goal position, not only the scene's
+    own_resets = False  # starts come from `scene.sample_initial_conditions`, not from the env's resets
+    pixel_starts = False  # initial conditions may be gym-pusht's own state vectors (px)
+    disturbable = True
+    lerobot_pusht_data = False  # datasets with lerobot/pusht's features (else this package's own)
+    # Behaviour the expert keeps (`planning.expert.PlanExpert`): from a far finger plan straight to the goal;
+    # replace a plan that detours around the slider.
+    stage_first = False
+    replace_detours = True
+
+    # The state.
+    def slider(self, box, heading: float = 0.0) -> list[float]:
+        """The planner's slider state at position `box` (the box: [x, y]; a heading is not its to have)."""
+        return [float(box[0]), float(box[1])]
+
+    def state(self, pose) -> np.ndarray:
+        """The planner's slider state at `pose` [x, y, heading] (an env's `info["slider_pose"]`)."""
+        return np.asarray(pose, float)[:2]
+
+    def refuses_heading(self, heading: float) -> bool:
+        return heading != 0.0
+
+    def extent(self, scene: Scene) -> float:
+        """How far the slider reaches from its centre towards a wall (`Scene.slider_extent`)."""
+        return scene.box_half
+
+    def yaw_damping(self, scene: Scene) -> float | None:
+        """The sim's yaw joint's damping; None: no yaw joint."""
+        return None
+
+    def twist(self, scene: Scene):
+        """The shape a disturbance's push also twists (`sim.env.DisturbanceSchedule`); None: it cannot turn."""
+        return None
+
+    def task(self, scene: Scene) -> str:
+        return TASK
+
+    # Success, reward and records.
+    def judge(self, scene: Scene, pose: np.ndarray, distance: float) -> dict:
+        """The env's success and the slider's keys of its `info`, at `pose` [x, y, heading]."""
+        return {"is_success": bool(distance <= scene.success_threshold), "slider_pose": pose}
+
+    def reward(self, scene: Scene, info: dict) -> float:
+        return -info["box_goal_distance"]
+
+    def summary(self, info: dict) -> dict:
+        """What a run's record keeps of the slider beyond the box's position (`rollout.rollout`)."""
+        return {}
+
+    def success_measures(self, scene: Scene, thresholds) -> tuple[str, str, str, str, str]:
+        """`evaluation.success.SuccessMeasures`' fields: the paper's radius and a looser one."""
+        thr1, thr2 = thresholds
+        return (
+            f"success (box within {thr1:g} m)",
+            f"success {thr1:g} m",
+            f"success_{thr2:g}",
+            f"success {thr2:g} m",
+            f"success per initial condition ({thr1:g} m / {thr2:g} m)",
+        )
+
+    # Text for `gcs-push plan`.
+    def solve_time_text(self, seconds: float) -> str:
+        return f"{seconds * 1e3:.1f} ms"
+
+    def final_text(self, final) -> str:
+        return f"box ends at {final}"
+
+    # The expert.
+    def make_planner(self, scene: Scene, method: str = "relaxation") -> Planner:
+        from lerobot_gcs_push.planner import GcsPlanner
+
+        return GcsPlanner(scene, method=method)
+
+    def speeds(self, commands: str = "position") -> Speeds:
+        return Speeds()
+
+    def replan_rule(self, commands: str = "position"):
+        return BOX_RULE
+
+    def fine_within(self, scene: Scene) -> float:
+        """How near its goal the expert corrects the slider by single pushes: never for the box."""
+        return 0.0
+
+    def wrap_expert(self, expert, scene: Scene, config):
+        """The policy the env is driven by, around the expert over the scene's metres."""
+        return expert
+
+
+class FixedBox(SliderKind):
+    """The paper's box: it slides on x and y and cannot turn; it succeeds within a distance of its goal."""
+
+    name = "box"
+
+
+class TurningSlider(SliderKind):
+    """A slider that turns in the Drake sim (the box on a yaw joint, or the T); it succeeds by covering its
+    goal outline, and plans through contact (`contact.ContactPlanner`, the relaxation only)."""
+
+    name = "turning"
+    pose_size = 3
+    state_names = ("slider_x", "slider_y", "slider_heading")
+    trajectory_keys = ("finger", "box", "slider_pose")
+    methods = ("relaxation",)
+    # Replanned from the measured pose: its plans chain pushes, and a push may end elsewhere.
+    default_expert = "closed-loop"
+    # No GCS cost-to-go yet: V at every chunk of every rollout means thousands of plans through contact,
+    # at 0.4-3 s each.
+    cost_to_go = False
+    hard_starts = False  # the hard families align the finger with axis-aligned faces: the box's
+    goals_anywhere = False  # its relaxation plans to the scene's goal pose only
+
+    def slider(self, box, heading: float = 0.0) -> list[float]:
+        return [float(box[0]), float(box[1]), float(heading)]
+
+    def state(self, pose) -> np.ndarray:
+        return np.asarray(pose, float)
+
+    def refuses_heading(self, heading: float) -> bool:
+        return False
+
+    def extent(self, scene: Scene) -> float:
+        # It may point its farthest outline point at any wall, so the workspace grows with it.
+        return scene.shape.r_max
+
+    def yaw_damping(self, scene: Scene) -> float | None:
+        return scene.rot_damping
+
+    def twist(self, scene: Scene):
+        return scene.shape
+
+    def task(self, scene: Scene) -> str:
+        return f"Push the red {'T' if scene.slider == 'tee' else 'box'} onto the green outline."
+
+    def judge(self, scene: Scene, pose: np.ndarray, distance: float) -> dict:
+        coverage = scene.coverage(pose)
+        return {
+            "is_success": bool(coverage >= scene.success_coverage),
+            "coverage": coverage,
+            "position_error": distance,
+            "heading_error": scene.heading_error(pose[2]),
+            "heading": float(pose[2]),
+            "slider_pose": pose,
+            "goal_pose": scene.goal_pose,
+        }
+
+    def reward(self, scene: Scene, info: dict) -> float:
+        return min(info["coverage"] / scene.success_coverage, 1.0)
+
+    def summary(self, info: dict) -> dict:
+        return {
+            "slider_pose_final": np.asarray(info["slider_pose"]).tolist(),
+            "coverage": float(info["coverage"]),
+            "heading_error": float(info["heading_error"]),
+        }
+
+    def success_measures(self, scene: Scene, thresholds) -> tuple[str, str, str, str, str]:
+        # Beside the rule, the mean final coverage: how close the failures came.
+        rule = f"coverage >= {scene.success_coverage:g}"
+        return f"success ({rule})", "success", "coverage", "mean coverage", f"success ({rule}) / mean coverage"
+
+    def solve_time_text(self, seconds: float) -> str:
+        return f"{seconds:.2f} s"
+
+    def final_text(self, final) -> str:
+        return f"slider ends at {final} (x, y, heading)"
+
+    def make_planner(self, scene: Scene, method: str = "relaxation") -> Planner:
+        from lerobot_gcs_push.contact import ContactPlanner
+
+        if method not in self.methods:
+            raise ValueError(f"a rotating slider plans with the relaxation only, not {method!r}")
+        return ContactPlanner(scene)
+
+    def speeds(self, commands: str = "position") -> Speeds:
+        return TURNING_SPEEDS
+
+    def replan_rule(self, commands: str = "position"):
+        return TURNING_RULE
+
+    def fine_within(self, scene: Scene) -> float:
+        """A slider of several convex parts (the T): 0.25. Near the goal the T's rounding returned plans at 100
+        times their bound that took it away and back. With corrections, gym-pusht's episodes were 4 % shorter
+        on 40 starts, and the Drake T went 50 / 50 on a fresh set. A convex one (the rotating box): none. Its
+        plans there are good, and on 50 starts (seed 5160, side by side) corrections made its episodes 0.9 s
+        longer on average, 50 / 50 either way."""
+        return TEE_FINE_WITHIN if len(scene.shape.parts) > 1 else 0.0
+
+
+class GymPushT(TurningSlider):
+    """gym-pusht's own T, in its pixels (`scene.frame`): its own resets and starts, no disturbances,
+    lerobot/pusht's dataset features, and an expert whose plans become its agent's pixel commands."""
+
+    name = "gym-pusht"
+    own_resets = True
+    # Its resets may put the agent inside the T, so such a start is valid; and a start may be its state vector.
+    pixel_starts = True
+    disturbable = False
+    lerobot_pusht_data = True
+    # Its agent starts anywhere, far from the T: planned from near it first (`PlanExpert._plan`). Its
+    # detouring replans are kept: replaced, they cost 10 % of its demonstrations an hour (`make bench`'s pusht
+    # row, 837 against 929, run back to back) for no failure seen there; the Drake T's went 46 -> 49 of 50.
+    stage_first = True
+    replace_detours = False
+
+    def speeds(self, commands: str = "position") -> Speeds:
+        return PUSHT_POSITION_SPEEDS if commands == "position" else PUSHT_SPEEDS
+
+    def replan_rule(self, commands: str = "position"):
+        return PUSHT_POSITION_RULE if commands == "position" else TURNING_RULE
+
+    def wrap_expert(self, expert, scene: Scene, config):
+        from lerobot_gcs_push.pusht.agent import PixelActions
+
+        return PixelActions(expert, scene.frame, config.commands, config.lead_actions)
+
+
+FIXED_BOX, TURNING_SLIDER, GYM_PUSHT = FixedBox(), TurningSlider(), GymPushT()
+
+
+def kind_of(scene: Scene) -> SliderKind:
+    """The scene's kind: the one place that reads which slider a scene has."""
+    if not scene.rotates:
+        return FIXED_BOX
+    return TURNING_SLIDER if scene.frame is None else GYM_PUSHT
