@@ -103,7 +103,7 @@ class EvaluateConfig(FanOut):
         for p in self.policies:
             check_policy(p)
         if self.regret is None:
-            self.regret = not SCENES[self.env_id].rotates
+            self.regret = SCENES[self.env_id].kind.cost_to_go
         elif self.regret:
             check_cost_to_go(self.env_id, "regret is scored against it: leave --regret unset or false")
         check_sampler(self.sampler)

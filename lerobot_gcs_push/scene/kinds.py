@@ -70,6 +70,7 @@ class SliderKind:
     pixel_starts = False  # initial conditions may be gym-pusht's own state vectors (px)
     disturbable = True
     lerobot_pusht_data = False  # datasets with lerobot/pusht's features (else this package's own)
+    drawn_as_outline = False  # figures draw its outline at its pose (the box: squares, with no heading to show)
     # Behaviour the expert keeps (`planning.expert.PlanExpert`): from a far finger plan straight to the goal;
     # replace a plan that detours around the slider.
     stage_first = False
@@ -175,6 +176,7 @@ class TurningSlider(SliderKind):
     cost_to_go = False
     hard_starts = False  # the hard families align the finger with axis-aligned faces: the box's
     goals_anywhere = False  # its relaxation plans to the scene's goal pose only
+    drawn_as_outline = True
 
     def slider(self, box, heading: float = 0.0) -> list[float]:
         return [float(box[0]), float(box[1]), float(heading)]
