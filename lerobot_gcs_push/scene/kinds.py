@@ -69,6 +69,8 @@ class SliderKind:
     own_resets = False  # starts come from `scene.sample_initial_conditions`, not from the env's resets
     pixel_starts = False  # initial conditions may be gym-pusht's own state vectors (px)
     disturbable = True
+    records_coverage = False  # its runs' records hold the share of the goal it covers
+    drake_env = True  # its env is this package's Drake env (`sim.env.GcsPushEnv`), registered here
     lerobot_pusht_data = False  # datasets with lerobot/pusht's features (else this package's own)
     drawn_as_outline = False  # figures draw its outline at its pose (the box: squares, with no heading to show)
     # Behaviour the expert keeps (`planning.expert.PlanExpert`): from a far finger plan straight to the goal;
@@ -77,9 +79,13 @@ class SliderKind:
     replace_detours = True
 
     # The state.
-    def slider(self, box, heading: float = 0.0) -> list[float]:
+    def slider(self, box, heading: float = 0.0) -> list:
         """The planner's slider state at position `box` (the box: [x, y]; a heading is not its to have)."""
-        return [float(box[0]), float(box[1])]
+        return list(box)
+
+    def pose(self, slider) -> list:
+        """[x, y, heading] of a planner's slider state."""
+        return [*slider, 0.0]
 
     def state(self, pose) -> np.ndarray:
         """The planner's slider state at `pose` [x, y, heading] (an env's `info["slider_pose"]`)."""
@@ -177,9 +183,13 @@ class TurningSlider(SliderKind):
     hard_starts = False  # the hard families align the finger with axis-aligned faces: the box's
     goals_anywhere = False  # its relaxation plans to the scene's goal pose only
     drawn_as_outline = True
+    records_coverage = True
 
-    def slider(self, box, heading: float = 0.0) -> list[float]:
-        return [float(box[0]), float(box[1]), float(heading)]
+    def slider(self, box, heading: float = 0.0) -> list:
+        return [*box, float(heading)]
+
+    def pose(self, slider) -> list:
+        return list(slider)
 
     def state(self, pose) -> np.ndarray:
         return np.asarray(pose, float)
@@ -265,6 +275,7 @@ class GymPushT(TurningSlider):
     pixel_starts = True
     disturbable = False
     lerobot_pusht_data = True
+    drake_env = False  # gym-pusht's own, wrapped (`pusht.env.GymPushTTarget`)
     # Its agent starts anywhere, far from the T: planned from near it first (`PlanExpert._plan`). Its
     # detouring replans are kept: replaced, they cost 10 % of its demonstrations an hour (`make bench`'s pusht
     # row, 837 against 929, run back to back) for no failure seen there; the Drake T's went 46 -> 49 of 50.
