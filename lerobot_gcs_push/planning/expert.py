@@ -199,7 +199,8 @@ class PlanExpert:
 
     def _fine_plan(self, slider, finger) -> Plan | None:
         """The first of the planner's corrections whose way there is clear: the finger goes to its
-        standoff (`_way`), in along the face's normal, pushes, and backs off. None where there is none."""
+        standoff (`_way`), in along the face's normal, pushes, and backs off. None where there is none.
+        The planner is then an `interface.Corrects`: the slider kinds give a `fine_within` only to those."""
         slider, finger = np.asarray(slider, float), np.asarray(finger, float)
         t0 = time.perf_counter()
         for k in self.planner.corrections(slider):
