@@ -16,7 +16,7 @@ import numpy as np
 
 from lerobot_gcs_push.planning.interface import Planner, PlanningError
 from lerobot_gcs_push.planning.plan import DWELL, FREE, PUSH, RETREAT, Plan, Schedule, Speeds
-from lerobot_gcs_push.planning.replan import BOX_RULE, TURNING_RULE, ReplanRule  # noqa: F401 (their users import them here)
+from lerobot_gcs_push.planning.rules import BOX_RULE, TURNING_RULE, ReplanRule  # noqa: F401 (their users import them here)
 from lerobot_gcs_push.scene import wrap_angle
 
 # Shares of the way from the slider to its goal where a plan is sought when none reaches the goal. A T by

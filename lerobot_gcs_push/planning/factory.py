@@ -75,7 +75,7 @@ class ExpertConfig:
     replan_tolerance: float = 0.03
     max_replans: int = 50
     # gym-pusht only: what an action is (pusht.agent.PixelActions). "position": the plan's own point
-    # `lead_actions` on (None: 3), along a path of bounded acceleration (`scene.kinds.PUSHT_POSITION_SPEEDS`); the
+    # `lead_actions` on (None: 3), along a path of bounded acceleration (`rules.PUSHT_POSITION_SPEEDS`); the
     # agent, trailing its command by about 1.5 actions, then rides the plan. "steer": the target that, held
     # `lead_actions` actions (None: 2), lands the PD agent on that point; it inverts the PD, the commands
     # until 2026-12-07 (over 2 rather than 1 its targets jumped a third to a quarter as far). Position

@@ -11,46 +11,16 @@ gym-pusht always reports its block's pose), beside `box` (x, y) and `finger`.
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from lerobot_gcs_push.planning.plan import Speeds
-from lerobot_gcs_push.planning.replan import BOX_RULE, TURNING_RULE
-
 if TYPE_CHECKING:
-    from lerobot_gcs_push.planning import Planner
+    from lerobot_gcs_push.planning import Planner, Speeds
+    from lerobot_gcs_push.planning.rules import ReplanRule
     from lerobot_gcs_push.scene import Scene
 
 TASK = "Push the red box onto the green goal."  # the box's language instruction, stored with every frame
-
-# A slider that turns in the Drake sim: the box's push speed and lead, no dwell: its plans chain pushes, and the
-# closed-loop expert replans where a push ended elsewhere. The lead builds up over its own length (0.34 m),
-# and the finger's sideways miss is steered out (experiments/rotation/README.md, "the finger gives way").
-# Free motion at 3 m/s: every replan takes the finger round the slider again, and at the box's 1 m/s a T
-# from the arena's edge spent half its 60 s in free motion (5 of the bench's 50 starts ran out of time);
-# at 3 m/s all 5 succeeded, and the rotating box's episodes were 4.9 s shorter on average
-# (experiments/rotation/README.md, "Free motion at 3 m/s").
-TURNING_SPEEDS = Speeds(free=3.0, push_dwell_s=0.0, push_lead_ramp_m=0.34, push_lateral_gain=1.0)
-# gym-pusht's block is first order (it stops the moment the push does): no dwell. Its agent is steered onto
-# the plan's points (pusht.agent.PixelActions), so no lead either. In m/s (60 px/m). Commanded with the plan's
-# points at free 3, push 1.5 m/s, the lagging agent cut corners into the T: 4 of 6 starts (seed 77), one
-# with 34 replans; at 1 / 0.5 m/s, seed 2026's first three took 10-27 s and the fourth over 6 min of
-# replanning; steered, at 2 / 1 m/s, seed 77's two failures and one more succeeded in 4-9 s.
-PUSHT_SPEEDS = Speeds(free=2.0, approach=1.0, push=1.0, retreat=2.0, push_dwell_s=0.0, push_lead=0.0)
-# gym-pusht's position commands: the plan's path with its acceleration bounded (m/s^2, `planning.timing`), so
-# that the commands a policy imitates have no kicks (experiments/pusht/README.md, "Imitable commands").
-PUSHT_POSITION_SPEEDS = replace(PUSHT_SPEEDS, accel=4.0)
-# And judged at twice the turning slider's shares: the agent rides the plan within an action but not on its
-# points, and at the turning rule's tolerance the T strayed past it after pushes twice as often as when
-# steered (22 replans against 11 on 10 starts), every replan a stop and a restart. On 20 tuning starts
-# (seeds 11820-11839) position commands led 3 actions at 4 m/s^2: 20 / 20, 84 plans, commands' second
-# difference 1.54-1.72x the agent's own (p90); judged at twice the shares: 20 / 20, 52 plans (the steered
-# expert: 57), 1.37-1.47x (experiments/pusht/README.md, "Imitable commands").
-PUSHT_POSITION_RULE = replace(TURNING_RULE, during_push=10.0, before_first_push=10.0, between_pushes=2.0)
-# How near its goal a T is corrected by single pushes (`SliderKind.fine_within`).
-TEE_FINE_WITHIN = 0.25
 
 
 class SliderKind:
@@ -145,10 +115,15 @@ class SliderKind:
 
         return GcsPlanner(scene, method=method)
 
+    # Its expert's settings live with the expert (`planning.rules`), which reads the scene.
     def speeds(self, commands: str = "position") -> Speeds:
+        from lerobot_gcs_push.planning import Speeds
+
         return Speeds()
 
-    def replan_rule(self, commands: str = "position"):
+    def replan_rule(self, commands: str = "position") -> ReplanRule:
+        from lerobot_gcs_push.planning.rules import BOX_RULE
+
         return BOX_RULE
 
     def fine_within(self, scene: Scene) -> float:
@@ -251,9 +226,13 @@ class TurningSlider(SliderKind):
         return ContactPlanner(scene)
 
     def speeds(self, commands: str = "position") -> Speeds:
+        from lerobot_gcs_push.planning.rules import TURNING_SPEEDS
+
         return TURNING_SPEEDS
 
-    def replan_rule(self, commands: str = "position"):
+    def replan_rule(self, commands: str = "position") -> ReplanRule:
+        from lerobot_gcs_push.planning.rules import TURNING_RULE
+
         return TURNING_RULE
 
     def fine_within(self, scene: Scene) -> float:
@@ -262,6 +241,8 @@ class TurningSlider(SliderKind):
         on 40 starts, and the Drake T went 50 / 50 on a fresh set. A convex one (the rotating box): none. Its
         plans there are good, and on 50 starts (seed 5160, side by side) corrections made its episodes 0.9 s
         longer on average, 50 / 50 either way."""
+        from lerobot_gcs_push.planning.rules import TEE_FINE_WITHIN
+
         return TEE_FINE_WITHIN if len(scene.shape.parts) > 1 else 0.0
 
 
@@ -283,9 +264,13 @@ class GymPushT(TurningSlider):
     replace_detours = False
 
     def speeds(self, commands: str = "position") -> Speeds:
+        from lerobot_gcs_push.planning.rules import PUSHT_POSITION_SPEEDS, PUSHT_SPEEDS
+
         return PUSHT_POSITION_SPEEDS if commands == "position" else PUSHT_SPEEDS
 
-    def replan_rule(self, commands: str = "position"):
+    def replan_rule(self, commands: str = "position") -> ReplanRule:
+        from lerobot_gcs_push.planning.rules import PUSHT_POSITION_RULE, TURNING_RULE
+
         return PUSHT_POSITION_RULE if commands == "position" else TURNING_RULE
 
     def wrap_expert(self, expert, scene: Scene, config):
