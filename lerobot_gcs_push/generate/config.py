@@ -46,7 +46,7 @@ class GenerateConfig(FanOut):
     expert: str | None = None
     # relaxation (convex relaxation + rounding) or micp (exact, SCIP).
     method: str = "relaxation"
-    # Initial conditions: sobol (space-filling), uniform (the paper's) or hard (see scene.py).
+    # Initial conditions: sobol (space-filling), uniform (the paper's) or hard (see scene/starts.py).
     sampler: str = "sobol"
     # A JSON list of {"box", "finger"} (and "heading" for a rotating slider) to use instead of the sampler
     # (e.g. the policy states that `gcs-push collect` picked); its entries are tried once each, in order,
