@@ -56,9 +56,10 @@ class PlanConfig:
         if isinstance(self.heading, bool) or not is_finite_number(self.heading):
             raise ValueError(f"heading must be a finite number of radians, got {_plain(self.heading)!r}")
         self.heading = float(self.heading)
-        if self.heading != 0.0 and not SCENES[check_env_id(self.env_id)].rotates:
+        kind = SCENES[check_env_id(self.env_id)].kind
+        if kind.refuses_heading(self.heading):
             raise ValueError(f"heading {self.heading} given, but {self.env_id}'s slider cannot rotate")
-        if SCENES[check_env_id(self.env_id)].rotates and (self.method != "relaxation" or self.goal is not None):
+        if self.method not in kind.methods or (self.goal is not None and not kind.goals_anywhere):
             raise ValueError(f"{self.env_id} plans with the relaxation to the scene's goal pose only")
         if self.initial_conditions and (self.box or self.finger):
             raise ValueError("give either initial_conditions or box/finger, not both")
@@ -126,11 +127,11 @@ def run_plan(cfg: PlanConfig) -> None:
     scene = SCENES[cfg.env_id]
     for i, q in enumerate(queries):  # every entry checked before the first plan, each error naming its field
         what = f"{cfg.initial_conditions!r} entry {i}" if cfg.initial_conditions else "plan"
-        heading = float(q.get("heading", cfg.heading)) if scene.rotates else 0.0
+        heading = scene.kind.pose(scene.kind.slider(q["box"], q.get("heading", cfg.heading)))[2]
         scene.validate_state(q["box"], q["finger"], heading=heading, what=what, box_limit=scene.box_reach)
     planner = make_planner(scene, cfg.method)
     for q in queries:
-        slider = [*q["box"], float(q.get("heading", cfg.heading))] if scene.rotates else q["box"]
+        slider = scene.kind.slider(q["box"], q.get("heading", cfg.heading))
         try:
             plan = planner.plan(slider, q["finger"], cfg.goal)
         except PlanningError as err:  # one query's failure is a line of output, not the end of the file
@@ -144,11 +145,11 @@ def run_plan(cfg: PlanConfig) -> None:
         if cfg.jsonl:
             print(json.dumps(plan.to_json()), flush=True)
             continue
-        took = f"{plan.solve_time_s:.2f} s" if scene.rotates else f"{plan.solve_time_s * 1e3:.1f} ms"
+        took = scene.kind.solve_time_text(plan.solve_time_s)
         print(f"cost {plan.cost:.4f} ({_bound_text(plan)}), {plan.num_pushes} push(es), solved in {took}")
         print("modes: " + " -> ".join(plan.modes or ["(already at the goal)"]))
         final = plan.slider_final.round(4).tolist()
-        where = f"slider ends at {final} (x, y, heading)" if scene.rotates else f"box ends at {final}"
+        where = scene.kind.final_text(final)
         print(f"{where}, execution takes {plan.duration(speeds_for(scene)):.1f} s")
 
 

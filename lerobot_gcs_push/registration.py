@@ -32,7 +32,7 @@ SCENES = {
 
 def make_env(env_id: str, **kwargs):
     """The env of a registered id, unwrapped (the rollouts read `.scene` and `.fps` off it)."""
-    if env_id == PUSHT_ENV_ID:
+    if not SCENES[env_id].kind.drake_env:
         return GymPushTTarget(**kwargs)
     return gym.make(env_id, **kwargs).unwrapped
 
@@ -47,7 +47,7 @@ def register_envs() -> None:
     default is the paper's, as before the rotating ids existed.
     """
     for env_id, scene in SCENES.items():
-        if env_id not in gym.envs.registry and env_id != PUSHT_ENV_ID:
+        if env_id not in gym.envs.registry and scene.kind.drake_env:
             kwargs = {} if env_id == ENV_ID else {"scene": scene}
             gym.register(id=env_id, entry_point="lerobot_gcs_push.sim.env:GcsPushEnv", kwargs=kwargs)
 
@@ -55,6 +55,6 @@ def register_envs() -> None:
 def sample_starts(scene: Scene, n: int, seed: int = 0, sampler: str = "sobol") -> list[InitialCondition]:
     """The first `n` starts of a seeded stream: gym-pusht's own resets for a scene with its pixel frame
     (but for the box's hard families, which it refuses), else `scene.sample_initial_conditions`."""
-    if scene.frame is not None and sampler not in HARD_SAMPLERS:
+    if scene.kind.own_resets and sampler not in HARD_SAMPLERS:
         return reset_states(scene, n, seed)
     return sample_initial_conditions(scene, n, seed=seed, sampler=sampler)

@@ -45,8 +45,8 @@ def rollout(
     Without `box`/`finger` the env samples the initial condition from `seed`; `pusht_state` (gym-pusht's
     state vector of the same start) takes their place in gym-pusht; `heading` is a rotating
     slider's (None: the env's default, 0). `on_step(obs, action, info)` sees each action with the
-    observation it was chosen from. A rotating slider's summary adds its final pose, coverage and
-    heading error."""
+    observation it was chosen from. The summary adds what the scene's slider kind records (a rotating
+    slider's final pose, coverage and heading error)."""
     options = None if box is None else {"box": list(box), "finger": list(finger)}
     if options is not None and heading is not None:
         options["heading"] = float(heading)
@@ -70,11 +70,6 @@ def rollout(
         "finger_final": np.asarray(info["finger"]).tolist(),
         "disturbances": info.get("disturbances", []),
     }
-    if "slider_pose" in info:  # a rotating slider: success is coverage, the pose has a heading
-        summary |= {
-            "slider_pose_final": np.asarray(info["slider_pose"]).tolist(),
-            "coverage": float(info["coverage"]),
-            "heading_error": float(info["heading_error"]),
-        }
+    summary |= env.unwrapped.scene.kind.summary(info)  # what the slider's kind records beyond its position
     extra = getattr(policy, "episode_summary", None)
     return summary | (extra() if extra is not None else {})

@@ -83,8 +83,19 @@ def test_truncation_success_and_info():
     assert e._max_episode_steps == 4 and e.metadata["render_fps"] == 20
     _, info = e.reset(options={"box": [1.05, 1.0], "finger": [-3.0, -3.0]})
     assert info["is_success"] and info["box_goal_distance"] == pytest.approx(0.05)
-    assert set(info) >= {"is_success", "box_goal_distance", "box", "finger", "sim_time_s", "disturbances", "goal"}
+    assert set(info) >= {
+        "is_success",
+        "box_goal_distance",
+        "box",
+        "finger",
+        "sim_time_s",
+        "disturbances",
+        "goal",
+        "slider_pose",
+    }
     np.testing.assert_array_equal(info["goal"], [1.0, 1.0])
+    # Every env reports the slider's pose [x, y, heading]; the box's heading is always 0.
+    np.testing.assert_array_equal(info["slider_pose"], [*info["box"], 0.0])
     flags = [e.step(np.array([-3.0, -3.0]))[2:4] for _ in range(4)]
     assert all(terminated for terminated, _ in flags)
     assert [truncated for _, truncated in flags] == [False, False, False, True]

@@ -42,11 +42,11 @@ def _env_pose(env) -> np.ndarray:
 
 def test_a_rotating_rollout_keeps_its_heading_and_its_slider_pose_to_the_end():
     env = gym.make(TEE_ENV_ID, max_sim_time_s=3.0).unwrapped
-    traj = Trajectory(rotates=True)
+    traj = Trajectory(env.scene.kind.trajectory_keys)
     res = rollout(env, TowardsTheSlider(), [1.5, -1.0], [-1.5, 1.0], seed=0, on_step=lambda o, a, i: traj.add(i),
                   heading=1.2)  # fmt: skip
     traj.add_final(res)
-    poses = np.array(traj.slider_pose)
+    poses = np.array(traj.rows["slider_pose"])
     assert len(poses) == round(3.0 * env.fps) + 1  # one per step and the final state
     np.testing.assert_allclose(poses[0], [1.5, -1.0, 1.2], atol=1e-9)  # reset with the heading given
     assert np.ptp(poses[:, 2]) > 0.01, "the push should have turned the T"
@@ -54,7 +54,7 @@ def test_a_rotating_rollout_keeps_its_heading_and_its_slider_pose_to_the_end():
     np.testing.assert_allclose(res["slider_pose_final"], _env_pose(env), atol=1e-12)
     assert res["coverage"] == pytest.approx(env.scene.coverage(_env_pose(env)), abs=1e-12)
     assert res["heading_error"] == pytest.approx(wrap_angle(_env_pose(env)[2] + math.pi / 4), abs=1e-12)
-    np.testing.assert_allclose(np.array(traj.box), poses[:, :2])
+    np.testing.assert_allclose(np.array(traj.rows["box"]), poses[:, :2])
 
 
 def test_a_rotating_slider_episode_is_stored_with_its_pose_and_its_task(tmp_path):

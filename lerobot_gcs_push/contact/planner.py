@@ -1,6 +1,6 @@
 """ContactPlanner, a rotating slider's `planning.Planner`: plans through contact.
 
-planner = ContactPlanner(Scene(rotates=True))
+planner = ContactPlanner(SCENES[SE2_ENV_ID])                     # registration.SCENES: a slider that turns
 plan = planner.plan(slider_pose=(x, y, heading), finger=(x, y))    # relaxation + rounding
 plan.cost, plan.lower_bound, plan.gap, plan.slider_poses, plan.finger_path, plan.modes
 planner.baseline(slider_pose, finger)                               # the NLP alone, heuristic guess

@@ -52,7 +52,7 @@ class EvaluateConfig(FanOut):
     # set of the sampler, 1000 (the paper's protocol set, uniform) or 3000 (the hard set).
     seed: int | None = None
     # The paper samples its evaluation set from the training distribution (uniform); `hard` is the
-    # named set of configurations a cloned policy gets wrong (scene.py), with its own seed; `hard_v2` adds
+    # named set of configurations a cloned policy gets wrong (scene/starts.py), with its own seed; `hard_v2` adds
     # fingers far from the box (opposite corners among them).
     sampler: str = "uniform"
     # Regret of each executed chunk against the GCS cost-to-go (planning.factory.chunk_regret); a chunk above
@@ -103,7 +103,7 @@ class EvaluateConfig(FanOut):
         for p in self.policies:
             check_policy(p)
         if self.regret is None:
-            self.regret = not SCENES[self.env_id].rotates
+            self.regret = SCENES[self.env_id].kind.cost_to_go
         elif self.regret:
             check_cost_to_go(self.env_id, "regret is scored against it: leave --regret unset or false")
         check_sampler(self.sampler)

@@ -102,7 +102,7 @@ def fig7_trajectories(cfg, out: Path, records: list[dict], ics: list[dict], max_
             finger = traj["finger"]
             if len(finger) < 2:
                 continue
-            if scene.rotates:
+            if scene.kind.drawn_as_outline:
                 draw_slider_path(ax, scene, traj["slider_pose"], plt.get_cmap(cmaps[j % len(cmaps)])(0.8))
             segs = np.stack([finger[:-1], finger[1:]], axis=1)
             thick = label == "gcs-open-loop"
@@ -166,7 +166,7 @@ def fig_regret(cfg, out: Path, records: list[dict]) -> Path | None:
 def draw_start_and_goal(ax, scene: Scene, ic: dict) -> None:
     """The slider at the initial condition (red) and the goal (green): squares for the box that cannot
     turn, outlines at their poses for a rotating slider."""
-    if not scene.rotates:
+    if not scene.kind.drawn_as_outline:
         ax.add_patch(_rect(ic["box"], scene.box_half, "tab:red", 0.35))
         ax.add_patch(_rect(scene.goal, scene.box_half, "tab:green", 0.35))
         return

@@ -68,31 +68,22 @@ def video_path(out: Path, label: str, ic_index: int) -> Path:
 
 
 class Trajectory:
-    """A run's states, one row per step and the final state, as saved beside its record: finger and box
-    positions, and a rotating slider's pose (x, y, heading) too."""
+    """A run's states, one row per step and the final state, as saved beside its record: the `info` entries
+    its slider kind names (`trajectory_keys`: finger and box positions, and a rotating slider's pose)."""
 
-    def __init__(self, rotates: bool):
-        self.rotates = rotates
-        self.finger: list[np.ndarray] = []
-        self.box: list[np.ndarray] = []
-        self.slider_pose: list[np.ndarray] = []
+    def __init__(self, keys: tuple[str, ...]):
+        self.rows: dict[str, list[np.ndarray]] = {k: [] for k in keys}
 
     def add(self, info: dict) -> None:
-        self.finger.append(np.asarray(info["finger"], float))
-        self.box.append(np.asarray(info["box"], float))
-        if self.rotates:
-            self.slider_pose.append(np.asarray(info["slider_pose"], float))
+        for key, rows in self.rows.items():
+            rows.append(np.asarray(info[key], float))
 
     def add_final(self, summary: dict) -> None:
         """The state the episode ended in, from the rollout's summary (no step follows it)."""
-        self.finger.append(np.asarray(summary["finger_final"], float))
-        self.box.append(np.asarray(summary["box_final"], float))
-        if self.rotates:
-            self.slider_pose.append(np.asarray(summary["slider_pose_final"], float))
+        for key, rows in self.rows.items():
+            rows.append(np.asarray(summary[f"{key}_final"], float))
 
     def save(self, path: Path) -> None:
-        arrays = {"finger": np.array(self.finger), "box": np.array(self.box)}
-        if self.rotates:
-            arrays["slider_pose"] = np.array(self.slider_pose)
+        arrays = {key: np.array(rows) for key, rows in self.rows.items()}
         with atomic_path(path) as tmp, open(tmp, "wb") as f:
             np.savez_compressed(f, **arrays)

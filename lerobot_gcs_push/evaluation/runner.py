@@ -91,7 +91,7 @@ class _Runner:
         env = self.envs[dist]
         seed = episode_seed(self.cfg.seed, (i * self.cfg.runs + r) * 2 + int(dist))
         frames = [] if job["video"] else None
-        traj = Trajectory(env.scene.rotates)
+        traj = Trajectory(env.scene.kind.trajectory_keys)
 
         def on_step(obs, action, info):
             traj.add(info)
@@ -124,7 +124,7 @@ class _Runner:
             from lerobot_gcs_push.evaluation.videos import write_video
 
             write_video(video_path(self.out, label, i), frames, env.fps)
-        regret = self.regret(traj.box, traj.finger, chunk) if self.cfg.regret else {}
+        regret = self.regret(traj.rows["box"], traj.rows["finger"], chunk) if self.cfg.regret else {}
         return regret | {
             "policy": policy,
             "label": label,

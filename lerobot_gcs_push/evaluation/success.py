@@ -24,16 +24,4 @@ def success_measures(cfg) -> SuccessMeasures:
     """The box: the paper's radius and a looser one. A rotating slider: coverage of the goal outline,
     and beside it the mean final coverage (how close the failures came)."""
     scene = SCENES[cfg.env_id]
-    if scene.rotates:
-        rule = f"coverage >= {scene.success_coverage:g}"
-        return SuccessMeasures(
-            f"success ({rule})", "success", "coverage", "mean coverage", f"success ({rule}) / mean coverage"
-        )
-    thr1, thr2 = cfg.success_thresholds
-    return SuccessMeasures(
-        f"success (box within {thr1:g} m)",
-        f"success {thr1:g} m",
-        f"success_{thr2:g}",
-        f"success {thr2:g} m",
-        f"success per initial condition ({thr1:g} m / {thr2:g} m)",
-    )
+    return SuccessMeasures(*scene.kind.success_measures(scene, cfg.success_thresholds))

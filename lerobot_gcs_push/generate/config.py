@@ -47,7 +47,7 @@ class GenerateConfig(FanOut):
     expert: str | None = None
     # relaxation (convex relaxation + rounding) or micp (exact, SCIP).
     method: str = "relaxation"
-    # Initial conditions: sobol (space-filling), uniform (the paper's) or hard (see scene.py).
+    # Initial conditions: sobol (space-filling), uniform (the paper's) or hard (see scene/starts.py).
     sampler: str = "sobol"
     # A JSON list of {"box", "finger"} (and "heading" for a rotating slider) to use instead of the sampler
     # (e.g. the policy states that `gcs-push collect` picked); its entries are tried once each, in order,
@@ -101,10 +101,10 @@ class GenerateConfig(FanOut):
             raise ValueError("choose one of overwrite and resume, not both")
         if "/" not in self.repo_id:
             raise ValueError(f"repo_id must look like 'owner/name', got {self.repo_id!r}")
-        rotates = SCENES[self.env_id].rotates
+        kind = SCENES[self.env_id].kind
         replayable = bool(ics) and all("actions" in ic for ic in ics)
         if self.expert is None:
-            self.expert = "replay" if replayable else "closed-loop" if rotates else "open-loop"
+            self.expert = "replay" if replayable else kind.default_expert
         if self.expert not in (*EXPERTS, "replay"):
             raise ValueError(f"unknown expert {self.expert!r}: choose one of {(*EXPERTS, 'replay')}")
         if self.expert == "replay":
@@ -129,13 +129,13 @@ class GenerateConfig(FanOut):
         from lerobot_gcs_push.planner import check_method
 
         check_method(self.method)
-        if rotates and self.method != "relaxation":
+        if self.method not in kind.methods:
             raise ValueError(f"{self.env_id} plans with the relaxation only: drop --method={self.method}")
         if self.max_sim_time_s is None:
             self.max_sim_time_s = scene.timeout_s
         if self.image_size < 1:
             raise ValueError(f"image_size must be >= 1, got {self.image_size}")
-        if scene.frame is not None:
+        if scene.kind.lerobot_pusht_data:
             from lerobot_gcs_push.pusht.dataset import check_obs_type
 
             check_obs_type(self.obs_type)

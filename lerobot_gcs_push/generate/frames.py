@@ -14,7 +14,7 @@ from lerobot_gcs_push.generate.config import (
     GenerateConfig,
 )
 from lerobot_gcs_push.pusht.dataset import pusht_feature_keys, pusht_features
-from lerobot_gcs_push.registration import PUSHT_ENV_ID, SCENES
+from lerobot_gcs_push.registration import SCENES
 from lerobot_gcs_push.scene import (
     Scene,
 )
@@ -24,7 +24,7 @@ FEATURE_KEYS = ("observation.image", "observation.state", "observation.environme
 
 def features(scene: Scene, image_size: int) -> dict:
     """The dataset's features; the environment state is the box's position, or a rotating slider's pose."""
-    slider = ["slider_x", "slider_y", "slider_heading"] if scene.rotates else ["box_x", "box_y"]
+    slider = list(scene.kind.state_names)
     return {
         "observation.image": {
             "dtype": "image",
@@ -41,11 +41,11 @@ class EpisodeFrames:
     """A rollout's frames as the dataset stores them; pass it to `rollout` as `on_step`."""
 
     def __init__(self, scene: Scene):
-        self.rotates = scene.rotates
+        self.kind = scene.kind
         self.frames: dict[str, list] = {k: [] for k in FEATURE_KEYS}
 
     def __call__(self, obs, action, info) -> None:
-        state = info["slider_pose"] if self.rotates else info["box"]
+        state = self.kind.state(info["slider_pose"])
         self.frames["observation.image"].append(obs["pixels"])
         self.frames["observation.state"].append(np.asarray(obs["agent_pos"], np.float32))
         self.frames["observation.environment_state"].append(np.asarray(state, np.float32))
@@ -131,7 +131,7 @@ class _Writer:
         from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
         scene = SCENES[cfg.env_id]
-        pusht = cfg.env_id == PUSHT_ENV_ID  # lerobot/pusht's features, its image as video
+        pusht = scene.kind.lerobot_pusht_data  # lerobot/pusht's features, its image as video
         self.task = scene.task
         self.keys = pusht_feature_keys(cfg.obs_type) if pusht else FEATURE_KEYS
         self.ds = LeRobotDataset.create(

@@ -146,12 +146,12 @@ class ImproveConfig(FanOut):
         scene = SCENES[check_env_id(self.env_id)]
         # A slider that turns has no hard families (they are the box's) and gym-pusht no disturbances:
         # configs/improve/pusht.json sets its rounds up.
-        if scene.rotates and (self.round.hard or self.validation.hard):
+        if not scene.kind.hard_starts and (self.round.hard or self.validation.hard):
             raise ValueError(
                 f"{self.env_id} has no hard families (they are the box's): set round.hard=0 and validation.hard=0 "
                 "(its starts are round.uniform and validation.uniform; see configs/improve/pusht.json)"
             )
-        if scene.frame is not None and self.round.disturbances:
+        if not scene.kind.disturbable and self.round.disturbances:
             raise ValueError(f"{self.env_id} has no disturbances: set round.disturbances=false")
         check_sampler(self.hard_sampler)
         check_seed(self.seed)
@@ -213,7 +213,7 @@ class ImproveConfig(FanOut):
         cm = self.validation.coverage_margin
         if cm is not None and not 0.0 < cm < 1.0:
             raise ValueError(f"validation.coverage_margin must be a fraction in (0, 1), or None, got {cm}")
-        if cm is not None and not scene.rotates:
+        if cm is not None and not scene.kind.records_coverage:
             raise ValueError(
                 f"validation.coverage_margin needs a slider that turns: {self.env_id}'s runs record no coverage"
             )

@@ -140,7 +140,7 @@ class Improver:
         loop for a slider that turns, whose open-loop plans reach coverage on 1 start of 20 (contact/)."""
         from lerobot_gcs_push.registration import SCENES
 
-        return "gcs-closed-loop" if SCENES[self.cfg.env_id].rotates else "gcs-open-loop"
+        return f"gcs-{SCENES[self.cfg.env_id].kind.default_expert}"
 
     def rollouts(self, k: int) -> list[Path]:
         return [self.work / f"r{k}" / f"rollouts_{s}" for s in ("hard", "uniform")]

@@ -113,7 +113,7 @@ def stall_branch_states(records: list[dict], cfg, scene: Scene, gcs_policies) ->
 def start_entry(scene: Scene, pose, finger) -> dict:
     """An initial-condition entry for the state: gym-pusht's own state vector for a scene in pixels (the env
     is reset to report exactly it), else the slider's position, heading and the finger in metres."""
-    if scene.frame is not None:
+    if scene.kind.pixel_starts:
         return {"pusht_state": np.round(scene.frame.state_of(pose, finger), 6).tolist()}
     return {
         "box": np.round(pose[:2], 6).tolist(),

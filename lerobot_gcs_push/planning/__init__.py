@@ -3,7 +3,7 @@ rounding walk over relaxed flows (`flow_walk`); the one expert that runs any pla
 what serves each scene: its planner and its expert, with their settings (`factory`).
 The planners behind it: `planner/` (the box, over its modes) and `contact/` (a slider that turns)."""
 
-from lerobot_gcs_push.planning.interface import Planner, PlanningError
+from lerobot_gcs_push.planning.interface import Corrects, Planner, PlanningError
 from lerobot_gcs_push.planning.plan import (
     APPROACH,
     DWELL,
@@ -18,6 +18,7 @@ from lerobot_gcs_push.planning.plan import (
 
 __all__ = [
     "APPROACH",
+    "Corrects",
     "DWELL",
     "FREE",
     "PUSH",

@@ -1,8 +1,8 @@
 """The one expert: any `Planner`'s plans, open loop (the first plan, executed) or closed loop (replanned from
 the measured state whenever the slider strays from the plan), as a `rollout.Policy` over the env's true
-state in `info` (`slider_pose`, or the box's `box`, and `finger`); the env knows nothing about it.
+state in `info` (`slider_pose` and `finger`); the env knows nothing about it.
 
-What differs between scenes is data the scene chooses (`factory.make_expert`): the speeds, and the
+What differs between scenes is data the scene's slider kind chooses (`factory.make_expert`): the speeds, and the
 `ReplanRule` that says how far the slider may stray where.
 """
 
@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
 from lerobot_gcs_push.planning.interface import Planner, PlanningError
 from lerobot_gcs_push.planning.plan import DWELL, FREE, PUSH, RETREAT, Plan, Schedule, Speeds
+from lerobot_gcs_push.planning.rules import BOX_RULE, TURNING_RULE, ReplanRule  # noqa: F401 (their users import them here)
 from lerobot_gcs_push.scene import wrap_angle
 
 # Shares of the way from the slider to its goal where a plan is sought when none reaches the goal. A T by
@@ -58,36 +59,6 @@ FINE_STANDOFF_M, FINE_RETREAT_M = 0.15, 0.1
 FINE_PUSH_ACTIONS = 4
 # How close (m, rad) a state is to the last one planned from to count as the same query.
 QUERY_ATOL = 1e-3
-
-
-@dataclass(frozen=True)
-class ReplanRule:
-    """Where the closed-loop expert judges the slider against its plan, and at what share of the config's
-    `replan_tolerance` (every `replan_every` steps; a plan that has run out is always replanned)."""
-
-    # While a push runs (or its dwell holds), the finger's lag moves the slider off the reference: judged
-    # there only at this multiple of the tolerance (inf: never).
-    during_push: float
-    # Before the plan's first push, the last plan's push may still be draining into the slider.
-    before_first_push: float
-    # Which command's segment tells whether a push runs: the next one to be sent (True) or the last sent.
-    by_next_command: bool
-    approach_m: float = 0.0  # `Plan.schedule`'s approach along a push's face normal (plans through contact)
-    # Elsewhere (after a push, outside it).
-    between_pushes: float = 1.0
-
-
-# The box: judged only between pushes, at the tolerance (a pushed box moves with the finger's lag and is
-# judged once the push and its dwell have ended).
-BOX_RULE = ReplanRule(during_push=math.inf, before_first_push=1.0, by_next_command=False)
-# A slider that turns. Judged everywhere at the tolerance, a T replanned every second, each new plan backing
-# the finger off the face it pushed on, and crept to the goal at a quarter of the push speed (5 of 10
-# demonstrations failed so); within a push only a slider that has turned away (5 times the tolerance) is
-# replanned. The last 5 cm before a push that follows free motion run along the face's normal: arriving
-# along its free path the finger touched the T 5-10 cm from the planned contact, and near the goal turned
-# it away; 0.2 m (the box planner's transition buffer) doubled the T's episode time, since every replan
-# backs the finger off its face (16 sobol starts, experiments/rotation/README.md).
-TURNING_RULE = ReplanRule(during_push=5.0, before_first_push=5.0, by_next_command=True, approach_m=0.05)
 
 
 class PlanExpert:
@@ -133,8 +104,15 @@ class PlanExpert:
         except PlanningError:  # no plan from here (1 start in 10 of the T's): the finger holds; a failed run
             self.failed_replans += 1
             finger = np.asarray(info["finger"], float)
-            self._schedule, self._k = Schedule(finger[None], [FREE], _slider(info)[None]), 0
+            self._schedule, self._k = Schedule(finger[None], [FREE], self._slider(info)[None]), 0
         self._initial_plan_time_s = self.plan_time_s
+
+    def _slider(self, info: dict) -> np.ndarray:
+        """The planner's slider state in the env's `info`: the scene's slider kind reads it off the pose."""
+        return self.planner.scene.kind.state(info["slider_pose"])
+
+    def _state(self, info: dict) -> np.ndarray:
+        return np.concatenate([self._slider(info), np.asarray(info["finger"], float)])
 
     def episode_summary(self) -> dict:
         # Paper IV-B: the plan made before execution is plan time; replanning during it is run time.
@@ -170,8 +148,8 @@ class PlanExpert:
         return sched.commands[min(max(self._k - 1, 0) + n - 1, len(sched) - 1)].copy()
 
     def _replan(self, info: dict) -> None:
-        self._queried_at = _state(info)
-        slider, finger = self.planner.plannable(_slider(info), info["finger"])
+        self._queried_at = self._state(info)
+        slider, finger = self.planner.plannable(self._slider(info), info["finger"])
         t0 = time.perf_counter()
         try:
             plan = self._plan(slider, finger)
@@ -221,7 +199,8 @@ class PlanExpert:
 
     def _fine_plan(self, slider, finger) -> Plan | None:
         """The first of the planner's corrections whose way there is clear: the finger goes to its
-        standoff (`_way`), in along the face's normal, pushes, and backs off. None where there is none."""
+        standoff (`_way`), in along the face's normal, pushes, and backs off. None where there is none.
+        The planner is then an `interface.Corrects`: the slider kinds give a `fine_within` only to those."""
         slider, finger = np.asarray(slider, float), np.asarray(finger, float)
         t0 = time.perf_counter()
         for k in self.planner.corrections(slider):
@@ -350,7 +329,7 @@ class PlanExpert:
         # one step went unrealised, the agent came back to where it had planned, and each replan repeated the
         # plan for 20 s (seed 10400's start 49, 43 replans). So no query twice: the plan moves on, and from
         # elsewhere a new one is sought.
-        if self._queried_at is not None and np.allclose(_state(info), self._queried_at, atol=QUERY_ATOL):
+        if self._queried_at is not None and np.allclose(self._state(info), self._queried_at, atol=QUERY_ATOL):
             return False
         if self._k >= len(sched):
             return True  # ran out without the env declaring success: start again from here
@@ -361,12 +340,7 @@ class PlanExpert:
             share = rule.before_first_push
         else:
             share = rule.between_pushes
-        return math.isfinite(share) and self.strayed_by(_slider(info)) > cfg.replan_tolerance * share
-
-
-def _slider(info: dict) -> np.ndarray:
-    """The slider's pose: x, y, heading for one that turns (as rollout.py tells them apart), else the box."""
-    return np.asarray(info["slider_pose"] if "slider_pose" in info else info["box"], float)
+        return math.isfinite(share) and self.strayed_by(self._slider(info)) > cfg.replan_tolerance * share
 
 
 def _arc(centre: np.ndarray, start: np.ndarray, turn: float) -> list[np.ndarray]:
@@ -384,7 +358,3 @@ def _sideways(miss: np.ndarray, along: np.ndarray) -> np.ndarray:
     """The part of `miss` across the direction `along` (all of it where `along` is nil)."""
     norm = float(np.linalg.norm(along))
     return miss if norm < 1e-12 else miss - (miss @ along) / norm**2 * along
-
-
-def _state(info: dict) -> np.ndarray:
-    return np.concatenate([_slider(info), np.asarray(info["finger"], float)])

@@ -3,11 +3,13 @@ one `Plan` out, one error when there is none. Which planner serves a scene is `f
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 if TYPE_CHECKING:
+    from lerobot_gcs_push.contact.fine import Correction
     from lerobot_gcs_push.planning.plan import Plan
     from lerobot_gcs_push.scene import Scene
 
@@ -36,3 +38,14 @@ class Planner(Protocol):
 
     def warm_up(self) -> float:
         """Build what every plan needs now, so no query pays for it; the seconds it took."""
+
+
+class Corrects(Planner, Protocol):
+    """A planner that also proposes single corrective pushes (`contact.ContactPlanner`): what the expert
+    asks of it within its `fine_within` of the goal (`PlanExpert._fine_plan`). A planner without them is
+    run with `fine_within` 0, as every slider kind's `fine_within` gives for the box."""
+
+    def corrections(self, slider, goal=None, /) -> Sequence[Correction]:
+        """Single pushes from `slider` towards the goal (or `goal`), the least error left first; each
+        offers the finger's and the slider's path along it (`fingers`, `poses`), its face's outward normal
+        (`normal_world(heading)`, `normal`, `face`, `lam`) and the error left (`error`)."""

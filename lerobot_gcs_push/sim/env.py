@@ -126,7 +126,7 @@ class GcsPushEnv(gym.Env):
     ## Description
     A sphere finger under a PID controller pushes a slider resting on damped joints (quasi-static ground
     friction: pushed, it moves; released, it stops). The registered ids differ only in their `Scene`
-    (`slider`, `rotates`, `goal_heading`); every dimension, gain and rule comes from it.
+    (its slider, that slider's kind, `goal_heading`); every dimension, gain and rule comes from it.
 
     ## Action Space
     `Box(-finger_limit, finger_limit, (2,), float64)`: the absolute finger target (x, y) in metres, held
@@ -204,7 +204,7 @@ class GcsPushEnv(gym.Env):
         if not max_sim_time_s > 0:
             raise ValueError(f"max_sim_time_s must be positive, got {max_sim_time_s}")
         scene = scene if scene is not None else Scene()
-        if sampler in HARD_SAMPLERS and scene.rotates:
+        if sampler in HARD_SAMPLERS and not scene.kind.hard_starts:
             raise ValueError(f"sampler {sampler!r} is for the box that cannot rotate: choose 'uniform' or 'sobol'")
         if goal is not None:
             scene = scene.with_goal(goal)
@@ -230,7 +230,7 @@ class GcsPushEnv(gym.Env):
         # pushed or knocked past its workspace: the view edge bounds the finger, nothing bounds the box.
         agent = spaces.Box(-scene.view_half_width, scene.view_half_width, shape=(2,), dtype=np.float64)
         if obs_type == "state":
-            high = np.array([scene.view_half_width] * 2 + [np.inf] * 2 + [math.pi] * scene.rotates)
+            high = np.array([scene.view_half_width] * 2 + [np.inf] * 2 + [math.pi] * (scene.kind.pose_size - 2))
             self.observation_space = spaces.Box(-high, high, dtype=np.float64)
         elif obs_type == "environment_state_agent_pos":
             high = np.array([np.inf, np.inf, math.pi])
@@ -269,7 +269,7 @@ class GcsPushEnv(gym.Env):
             box, finger, heading = np.array(ic.box), np.array(ic.finger), ic.heading or 0.0
         self.sim.reset(box, finger, heading)
         self._steps = 0
-        twist = self.scene.shape if self.scene.rotates else None  # a rotating slider's pushes also twist it
+        twist = self.scene.kind.twist(self.scene)
         self._schedule = (
             DisturbanceSchedule(self.scene.disturbances, self.np_random, twist) if self.disturbances else None
         )
@@ -289,10 +289,7 @@ class GcsPushEnv(gym.Env):
         self._steps += 1
         info = self._info()
         truncated = self._steps >= self._max_episode_steps
-        if self.scene.rotates:
-            reward = min(info["coverage"] / self.scene.success_coverage, 1.0)
-        else:
-            reward = -info["box_goal_distance"]
+        reward = self.scene.kind.reward(self.scene, info)
         return self._observation(), reward, info["is_success"], truncated, info
 
     def render(self):
@@ -305,8 +302,7 @@ class GcsPushEnv(gym.Env):
     def _observation(self):
         finger = self.sim.finger_position()
         if self.obs_type == "state":
-            slider = self._slider_pose() if self.scene.rotates else self.sim.box_position()
-            return np.concatenate([finger, slider])
+            return np.concatenate([finger, self.scene.kind.state(self._slider_pose())])
         if self.obs_type == "environment_state_agent_pos":
             return {"environment_state": self._slider_pose(), "agent_pos": finger}
         return {"pixels": self.sim.image(), "agent_pos": finger}
@@ -315,28 +311,16 @@ class GcsPushEnv(gym.Env):
         box = self.sim.box_position()
         distance = self.scene.box_goal_distance(box)
         tick_s = self.scene.disturbances.tick_s
-        info = {
-            "is_success": bool(distance <= self.scene.success_threshold),
+        judged = self.scene.kind.judge(self.scene, self._slider_pose(), distance)  # success and the pose's keys
+        return {
+            "is_success": judged.pop("is_success"),
             "box_goal_distance": distance,
             "box": box,
             "finger": self.sim.finger_position(),
             "sim_time_s": self.sim.time,
             "disturbances": [d.to_info(tick_s) for d in self._schedule.started] if self._schedule else [],
             "goal": self.scene.goal_array,
-        }
-        if self.scene.rotates:
-            pose = self._slider_pose()
-            coverage = self.scene.coverage(pose)
-            info |= {
-                "is_success": bool(coverage >= self.scene.success_coverage),
-                "coverage": coverage,
-                "position_error": distance,
-                "heading_error": self.scene.heading_error(pose[2]),
-                "heading": float(pose[2]),
-                "slider_pose": pose,
-                "goal_pose": self.scene.goal_pose,
-            }
-        return info
+        } | judged
 
 
 def _size(size) -> tuple[int, int]:

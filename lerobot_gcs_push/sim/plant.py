@@ -1,7 +1,7 @@
 """The multibody plant of the pushing scene: the slider and a sphere finger, each on two prismatic joints,
 with optional visual geometry (ground, goal marker, colours). Every number comes from `scene.Scene`.
 
-The paper's box cannot turn: two damped prismatic joints, a cube. A rotating slider (`scene.rotates`) adds a
+The paper's box cannot turn: two damped prismatic joints, a cube. A slider that turns (its kind's `yaw_damping`) adds a
 damped revolute joint about its centroid, and its geometry is its shape's convex parts (rectangles) as
 boxes of the box's height: with damping b on x, y and `scene.rot_damping` on yaw, its quasi-static motion
 v = f / b, omega = tau / b_theta is the planner's ellipsoidal limit surface.
@@ -172,7 +172,7 @@ def add_scene_plant(builder: DiagramBuilder, scene: Scene, *, visual: bool) -> S
     parts = slider_parts(scene)
     box_body = plant.AddRigidBody("box", plant.AddModelInstance("box"), slider_inertia(scene, parts))
     *box_joints, yaw = add_xy_slider(
-        plant, "box", box_body, scene.box_half, scene.box_damping, scene.rot_damping if scene.rotates else None
+        plant, "box", box_body, scene.box_half, scene.box_damping, scene.kind.yaw_damping(scene)
     )
     friction = CoulombFriction(scene.finger_box_friction, scene.finger_box_friction)
     # One part keeps the paper's geometry name "box"; a union of parts numbers them.
@@ -194,7 +194,7 @@ def add_scene_plant(builder: DiagramBuilder, scene: Scene, *, visual: bool) -> S
             np.array(camera.ground_rgba),
         )
         goal_t = _GOAL_THICKNESS_REL * scene.box_size
-        if scene.rotates:  # a pose, not a position: the outline shows the heading to reach
+        if yaw is not None:  # a pose, not a position: the outline shows the heading to reach
             add_goal_outline(plant, scene, goal_t)
         else:
             plant.RegisterVisualGeometry(
@@ -205,7 +205,7 @@ def add_scene_plant(builder: DiagramBuilder, scene: Scene, *, visual: bool) -> S
                 np.array(camera.goal_rgba),
             )
     plant.Finalize()
-    n = 5 if scene.rotates else 4
+    n = 2 + scene.kind.pose_size
     assert plant.num_positions() == n and plant.num_velocities() == n
     return ScenePlant(
         plant=plant,

@@ -1,11 +1,11 @@
 """The Drake diagram of the pushing scene (paper section III-C).
 
 A discrete MultibodyPlant (`plant.add_scene_plant`) holds the slider on two damped prismatic joints (and,
-when it rotates, a damped yaw joint) and a sphere finger on two actuated prismatic joints. The finger
+for a slider that turns, a damped yaw joint) and a sphere finger on two actuated prismatic joints. The finger
 follows a commanded position through the paper's low-level controller:
 `StateInterpolatorWithDiscreteDerivative` -> `InverseDynamicsController` (PID) built on a finger-only
 control plant. A force disturbance can be applied at the slider's centre (with a torque about it when the
-slider rotates), and a top-down `RgbdSensor` (`camera.TopDownCamera`) renders the image. Every number
+slider turns), and a top-down `RgbdSensor` (`camera.TopDownCamera`) renders the image. Every number
 comes from `scene.Scene`.
 
 The diagram is built once per `PushSim`; `reset` only rewrites the context, so thousands of episodes can

@@ -4,23 +4,61 @@ Every other module (planner, sim, env, dataset, evaluation) reads these numbers 
 repeats them as literals. Defaults follow the paper's original system: a 1 m cube of 5 kg on damped
 prismatic joints (the quasistatic model: a pushed box moves, an unpushed box stops), a 0.3 m sphere
 finger under a PID inverse-dynamics controller, a 0.01 s plant step, and a 500 s timeout.
+
+Beside it: its slider's kind (`kinds`), what the consumers ask instead of testing which slider it is, and
+where its episodes start (`starts`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from lerobot_gcs_push.scene.kinds import TASK, SliderKind, kind_of
+from lerobot_gcs_push.scene.starts import (
+    FAR_FINGER_M,
+    HARD_KINDS,
+    HARD_SAMPLERS,
+    HARD_V2_KINDS,
+    SAMPLERS,
+    InitialCondition,
+    check_sampler,
+    check_seed,
+    episode_seed,
+    is_finite_number,
+    load_initial_conditions,
+    sample_initial_conditions,
+)
 from lerobot_gcs_push.shapes import PIVOTS, SliderShape, square, tee
 
 if TYPE_CHECKING:
     from lerobot_gcs_push.pusht.frame import PixelFrame
+
+__all__ = [
+    "FAR_FINGER_M",
+    "HARD_KINDS",
+    "HARD_SAMPLERS",
+    "HARD_V2_KINDS",
+    "SAMPLERS",
+    "TASK",
+    "Camera",
+    "Disturbances",
+    "InitialCondition",
+    "Scene",
+    "SliderKind",
+    "check_sampler",
+    "check_seed",
+    "episode_seed",
+    "is_finite_number",
+    "load_initial_conditions",
+    "sample_initial_conditions",
+    "wrap_angle",
+]
 
 
 @dataclass(frozen=True)
@@ -124,6 +162,11 @@ class Scene:
             raise ValueError(f"Scene.slider {self.slider!r} must rotate: set rotates=True")
 
     # Derived quantities: computed here once so that no module re-derives them differently.
+    @property
+    def kind(self) -> SliderKind:
+        """What the consumers ask of the slider (`scene.kinds`): they do not test which slider it is."""
+        return kind_of(self)
+
     @cached_property
     def shape(self) -> SliderShape:
         if self.slider == "box":
@@ -186,7 +229,7 @@ class Scene:
         that the finger can still pass around a slider at the region's edge at any heading. The other way
         (shrinking the sampling region to keep the view) would give the T less room than the box to move.
         """
-        return self.shape.r_max if self.rotates else self.box_half
+        return self.kind.extent(self)
 
     @property
     def view_half_width(self) -> float:
@@ -205,14 +248,12 @@ class Scene:
     @property
     def task(self) -> str:
         """The language instruction stored with every frame."""
-        if not self.rotates:
-            return TASK
-        return f"Push the red {'T' if self.slider == 'tee' else 'box'} onto the green outline."
+        return self.kind.task(self)
 
     def with_goal(self, goal) -> Scene:
         """The scene with goal (x, y), or (x, y, heading) for a rotating slider."""
         if len(goal) == 3:
-            if not self.rotates:
+            if self.kind.pose_size != 3:
                 raise ValueError(f"a goal heading needs a rotating slider, got goal {list(goal)}")
             return dataclasses.replace(self, goal=(float(goal[0]), float(goal[1])), goal_heading=float(goal[2]))
         return dataclasses.replace(self, goal=(float(goal[0]), float(goal[1])))
@@ -253,7 +294,7 @@ class Scene:
         finger = _vector2(finger, f"{what}: finger")
         if not is_finite_number(heading):
             raise ValueError(f"{what}: heading must be a finite number of radians, got {heading!r}")
-        if heading != 0.0 and not self.rotates:
+        if self.kind.refuses_heading(heading):
             raise ValueError(f"{what}: heading {heading} given, but this scene's slider cannot rotate")
         box_limit = self.box_limit if box_limit is None else box_limit
         if np.max(np.abs(box)) > box_limit + 1e-9:
@@ -274,7 +315,7 @@ class Scene:
         """`validate_state` of an initial condition's entry (`load_initial_conditions`). gym-pusht's own
         resets may put the agent inside the T, so a scene with a pixel frame lets the finger overlap; its
         agent is checked in the px it was given."""
-        if self.frame is not None and "pusht_state" in ic:
+        if self.kind.pixel_starts and "pusht_state" in ic:
             (u, v), limit = ic["pusht_state"][:2], self.finger_limit
             lo, hi = self.frame.to_px([-limit, limit]), self.frame.to_px([limit, -limit])  # y flips
             if not (lo[0] <= u <= hi[0] and lo[1] <= v <= hi[1]):
@@ -283,18 +324,11 @@ class Scene:
                     f"[{lo[0]:.0f}, {hi[0]:.0f}] px on both axes"
                 )
         return self.validate_state(
-            ic["box"], ic["finger"], heading=ic.get("heading", 0.0), what=what, allow_overlap=self.frame is not None
+            ic["box"], ic["finger"], heading=ic.get("heading", 0.0), what=what, allow_overlap=self.kind.pixel_starts
         )
 
     def box_goal_distance(self, box) -> float:
         return float(np.linalg.norm(np.asarray(box, float) - self.goal_array))
-
-
-def is_finite_number(value) -> bool:
-    try:
-        return math.isfinite(float(value))
-    except (TypeError, ValueError):
-        return False
 
 
 def wrap_angle(angle: float) -> float:
@@ -309,245 +343,3 @@ def _vector2(value, what: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{what} must be finite, got {arr.tolist()}")
     return arr
-
-
-TASK = "Push the red box onto the green goal."  # the language instruction stored with every frame
-SAMPLERS = ("sobol", "uniform", "hard", "hard_v2")
-HARD_KINDS = ("goal_side", "corner", "tiny_push", "edge")
-# `hard` stays as it was (its seeded sets are the test and validation sets on record); `hard_v2` adds the
-# family the unseen sets of session 20 found (box and finger in opposite corners: 1 success in 3) and
-# fingers far from the box in general, and draws its six families in turn.
-HARD_V2_KINDS = (*HARD_KINDS, "opposite_corners", "far_finger")
-HARD_SAMPLERS = {"hard": HARD_KINDS, "hard_v2": HARD_V2_KINDS}
-
-
-def check_sampler(sampler: str) -> str:
-    if sampler not in SAMPLERS:
-        raise ValueError(f"unknown sampler {sampler!r}: choose one of {SAMPLERS}")
-    return sampler
-
-
-@dataclass(frozen=True)
-class InitialCondition:
-    box: tuple[float, float]
-    finger: tuple[float, float]
-    kind: str = ""  # which family of the hard sampler drew it ("" for the space-filling samplers)
-    heading: float | None = None  # the slider's, radians; None for a slider that cannot rotate
-    pusht_state: tuple[float, ...] | None = None  # gym-pusht's own state vector of the same start (px)
-
-    def to_json(self) -> dict:
-        out = {"box": list(self.box), "finger": list(self.finger)}
-        if self.heading is not None:
-            out["heading"] = self.heading
-        if self.pusht_state is not None:
-            out["pusht_state"] = list(self.pusht_state)
-        if self.kind:
-            out["kind"] = self.kind
-        return out
-
-
-def sample_initial_conditions(
-    scene: Scene,
-    n: int,
-    seed: int = 0,
-    sampler: str = "sobol",
-    collides: Callable[[np.ndarray, np.ndarray], bool] | None = None,
-) -> list[InitialCondition]:
-    """The first `n` collision-free initial conditions of a seeded stream.
-
-    `sobol` (default) is a scrambled Sobol sequence over (box x, box y, finger x, finger y): it covers the
-    corners the paper's uniform samples left sparse (its Figs. 4 and 6). `uniform` reproduces the paper.
-    `hard` draws, in turn, the configurations a behaviour-cloned policy gets wrong (see `_hard_point`);
-    `hard_v2` the same families and two with the finger far from the box.
-    `collides(box, finger)` defaults to the exact sphere-box distance; the env passes Drake's query.
-    The i-th condition depends only on the seed and i, so a prefix of a longer list is the shorter list.
-
-    A target with its own resets (gym-pusht) draws them instead: `registration.sample_starts`.
-
-    A rotating slider (`scene.rotates`) adds a fifth coordinate, its heading, uniform in [-pi, pi) (from
-    the same Sobol or uniform stream), and `collides(box, finger, heading)` gets it. The hard families
-    are the box's (they align the finger with axis-aligned faces) and refuse a rotating slider.
-    """
-    if n < 0:
-        raise ValueError(f"number of initial conditions must be >= 0, got {n}")
-    check_sampler(sampler)
-    if collides is None:
-        collides = lambda b, f, h=0.0: scene.finger_box_gap(b, f, h) < 0  # noqa: E731
-    out: list[InitialCondition] = []
-    if sampler in HARD_SAMPLERS and scene.rotates:
-        raise ValueError(
-            f"the {sampler!r} sampler's families are for the box that cannot rotate: choose 'sobol' or 'uniform'"
-        )
-    if sampler in HARD_SAMPLERS:
-        kinds = HARD_SAMPLERS[sampler]
-        for i in range(n):
-            rng = np.random.default_rng([seed, i])
-            kind = kinds[i % len(kinds)]
-            while True:  # redraws come from the same stream, so the i-th condition still depends on (seed, i)
-                box, finger = _hard_point(scene, kind, rng)
-                if not collides(box, finger):
-                    break
-            out.append(InitialCondition(tuple(map(float, box)), tuple(map(float, finger)), kind))
-        return out
-    for point in _unit_points(sampler, seed, 5 if scene.rotates else 4):
-        box = (2 * point[:2] - 1) * scene.box_init_half_width
-        finger = (2 * point[2:4] - 1) * scene.finger_init_half_width
-        if scene.rotates:
-            heading = float(2 * math.pi * point[4] - math.pi)
-            if collides(box, finger, heading):
-                continue
-            out.append(InitialCondition(tuple(map(float, box)), tuple(map(float, finger)), heading=heading))
-        elif collides(box, finger):
-            continue
-        else:
-            out.append(InitialCondition(tuple(map(float, box)), tuple(map(float, finger))))
-        if len(out) == n:
-            break
-    return out
-
-
-# The far_finger family's least finger-to-box distance: half the workspace's diagonal (4.5 m of box region).
-FAR_FINGER_M = 6.0
-
-
-def _hard_point(scene: Scene, kind: str, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """One (box, finger) of a family that uniform sampling rarely draws but a policy must handle:
-
-    - goal_side: the box out along an axis from the goal, the finger between box and goal, aligned with
-      the goal-facing face: the plan must go around the box; the nearest face pushes it the wrong way.
-    - corner: the box near a corner, the finger just off one of its two goal-facing faces.
-    - tiny_push: the box a few decimetres from the goal, the finger far away.
-    - edge: the box along an edge of its region, the finger anywhere.
-    - opposite_corners: the box near a corner, the finger near the diagonally opposite one (hard_v2).
-    - far_finger: the box anywhere, the finger at least `FAR_FINGER_M` from it (hard_v2).
-    """
-    g, lim = scene.goal_array, scene.box_limit
-    near = scene.contact_distance + 0.05  # finger centre just clear of a face
-    lateral = scene.box_half - 0.1  # within the face's span
-    if kind == "goal_side":
-        axis, sign = rng.integers(2), rng.choice([-1.0, 1.0])
-        box = g.copy()
-        box[axis] += sign * rng.uniform(1.5, lim - abs(g[axis]))
-        box[1 - axis] += rng.uniform(-0.5, 0.5)
-        finger = box.copy()
-        finger[axis] -= sign * rng.uniform(near, near + 0.7)
-        finger[1 - axis] += rng.uniform(-lateral, lateral)
-    elif kind == "corner":
-        signs = rng.choice([-1.0, 1.0], size=2)
-        box = signs * rng.uniform(lim - 1.5, lim, size=2)
-        axis = rng.integers(2)
-        finger = box.copy()
-        finger[axis] -= signs[axis] * rng.uniform(near, near + 0.7)  # off the face that looks toward the goal
-        finger[1 - axis] += rng.uniform(-lateral, lateral)
-    elif kind == "tiny_push":
-        angle = rng.uniform(0, 2 * np.pi)
-        box = g + rng.uniform(0.15, 0.9) * np.array([np.cos(angle), np.sin(angle)])
-        finger = rng.uniform(-scene.finger_init_half_width, scene.finger_init_half_width, size=2)
-        axis = rng.integers(2)
-        finger[axis] = rng.choice([-1.0, 1.0]) * rng.uniform(3.5, scene.finger_init_half_width)
-    elif kind == "edge":
-        axis = rng.integers(2)
-        box = rng.uniform(-lim, lim, size=2)
-        box[axis] = rng.choice([-1.0, 1.0]) * rng.uniform(lim - 1.0, lim)
-        finger = rng.uniform(-scene.finger_init_half_width, scene.finger_init_half_width, size=2)
-    elif kind == "opposite_corners":
-        signs = rng.choice([-1.0, 1.0], size=2)
-        box = signs * rng.uniform(lim - 1.5, lim, size=2)
-        fl = scene.finger_init_half_width
-        finger = -signs * rng.uniform(fl - 1.5, fl, size=2)
-    elif kind == "far_finger":
-        box = rng.uniform(-lim, lim, size=2)
-        fl = scene.finger_init_half_width
-        while True:  # rejection from the same stream: a box near the centre has no finger this far in some draws
-            finger = rng.uniform(-fl, fl, size=2)
-            if np.linalg.norm(finger - box) >= FAR_FINGER_M:
-                break
-    else:
-        raise ValueError(f"unknown hard kind {kind!r}: choose one of {HARD_V2_KINDS}")
-    return np.clip(box, -lim, lim), np.clip(finger, -scene.finger_limit, scene.finger_limit)
-
-
-def check_seed(seed, name: str = "seed") -> int:
-    """`seed` if it is a whole number >= 0 (numpy's seeding refuses others with a message that names no field)."""
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ValueError(f"{name} must be a whole number >= 0, got {seed!r}")
-    return seed
-
-
-def episode_seed(seed: int, index: int) -> int:
-    """The env seed of episode `index` of a run seeded `seed`: independent of worker count and order."""
-    return int(np.random.SeedSequence([seed, index]).generate_state(1)[0])
-
-
-def load_initial_conditions(path, scene: Scene | None = None) -> list[dict]:
-    """A JSON list of {"box": [x, y], "finger": [x, y]} and, for a rotating slider, "heading" (radians; a
-    file without it means heading 0), other keys kept, with errors that name the entry. For gym-pusht
-    (a `scene` with a pixel frame), an entry may be {"pusht_state": [ax, ay, bx, by, angle]} instead, as
-    its `obs_type="state"` reports it (px, radians); box, finger and heading are filled in from it."""
-    import json
-
-    try:
-        with open(path) as f:
-            data = json.load(f)
-    except FileNotFoundError:
-        raise FileNotFoundError(f"initial-conditions file {str(path)!r} does not exist") from None
-    except OSError as err:  # a directory, no permission: the same one-line message, not a traceback
-        raise ValueError(f"cannot read initial-conditions file {str(path)!r}: {err.strerror}") from None
-    except json.JSONDecodeError as err:
-        raise ValueError(f"initial-conditions file {str(path)!r} is not valid JSON: {err}") from None
-    if not isinstance(data, list):
-        raise ValueError(f'{str(path)!r} must hold a JSON list of {{"box": [x, y], "finger": [x, y]}}')
-    out = []
-    for i, item in enumerate(data):
-        if isinstance(item, dict) and "pusht_state" in item:
-            out.append(_pusht_entry(path, i, item, scene))
-            continue
-        try:
-            box, finger = [float(v) for v in item["box"]], [float(v) for v in item["finger"]]
-            if len(box) != 2 or len(finger) != 2:
-                raise ValueError
-        except (KeyError, TypeError, ValueError):
-            raise ValueError(
-                f'{str(path)!r} entry {i} must be {{"box": [x, y], "finger": [x, y]}}, got {item!r}'
-            ) from None
-        entry = {**item, "box": box, "finger": finger}
-        if "heading" in item:
-            if isinstance(item["heading"], bool) or not is_finite_number(item["heading"]):
-                raise ValueError(
-                    f'{str(path)!r} entry {i}: "heading" must be a finite number of radians, got {item["heading"]!r}'
-                )
-            entry["heading"] = float(item["heading"])
-        out.append(entry)
-    return out
-
-
-def _pusht_entry(path, i: int, item: dict, scene: Scene | None) -> dict:
-    from lerobot_gcs_push.pusht.frame import check_pusht_state
-
-    if scene is None or scene.frame is None:
-        raise ValueError(f"{str(path)!r} entry {i}: a pusht_state is gym-pusht's: use --env_id=gym_pusht/PushT-v0")
-    try:
-        state = check_pusht_state(item["pusht_state"])
-    except ValueError as err:
-        raise ValueError(f"{str(path)!r} entry {i}: {err}") from None
-    pose, finger = scene.frame.pose_finger_of(state)
-    return {
-        **item,
-        "pusht_state": state.tolist(),
-        "box": pose[:2].tolist(),
-        "finger": finger.tolist(),
-        "heading": float(pose[2]),
-    }
-
-
-def _unit_points(sampler: str, seed: int, dims: int) -> Iterator[np.ndarray]:
-    if sampler == "uniform":
-        rng = np.random.default_rng(seed)
-        while True:
-            yield rng.random(dims)
-    else:
-        from scipy.stats import qmc
-
-        engine = qmc.Sobol(d=dims, scramble=True, rng=np.random.default_rng(seed))
-        while True:
-            yield from engine.random(64)
