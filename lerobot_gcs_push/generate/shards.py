@@ -21,7 +21,6 @@ from lerobot_gcs_push.generate.frames import (
 from lerobot_gcs_push.generate.replay import ReplayActions
 from lerobot_gcs_push.generate.workdir import WorkDir
 from lerobot_gcs_push.pusht.dataset import CommandNoise, PushTFrames
-from lerobot_gcs_push.registration import PUSHT_ENV_ID
 from lerobot_gcs_push.scene import (
     episode_seed,
 )
@@ -110,7 +109,7 @@ def _run_episode(job: tuple[int, dict]) -> dict:
 
     index, ic = job
     env, expert, cfg = _WORKER["env"], _WORKER["expert"], _WORKER["cfg"]
-    pusht = cfg.env_id == PUSHT_ENV_ID  # lerobot/pusht's frames, recorded from the env's own steps
+    pusht = env.scene.kind.lerobot_pusht_data  # lerobot/pusht's frames, recorded from the env's own steps
     seed = episode_seed(cfg.seed, index)
     noise, expected_run = None, None
     if cfg.expert == "replay" and "command_noise" in ic:  # a DART list: its labels again, its noise again
@@ -149,7 +148,7 @@ def _run_episode(job: tuple[int, dict]) -> dict:
         "wall_time_s": time.perf_counter() - t0,
         "disturbances": result["disturbances"],
     }
-    if "slider_pose_final" in result:  # a rotating slider: where it started and how much of the goal it covers
+    if env.scene.kind.records_coverage:  # a rotating slider: where it started and how much of the goal it covers
         meta |= {"heading_initial": ic.get("heading", 0.0), "coverage": result["coverage"]}
     if ic.get("pusht_state") is not None:  # gym-pusht's start, as its obs_type="state" reports it
         meta["pusht_state_initial"] = [float(v) for v in ic["pusht_state"]]
