@@ -139,6 +139,8 @@ class _Runner:
             "policy": policy,
             "label": label,
             "disturbances": dist,
+            # What the policy saw (pixels or gym-pusht's keypoints): `collect` records its expert the same way.
+            "obs_type": env.obs_type,
             "initial_condition_index": i,
             "box_initial": ic["box"],
             "finger_initial": ic["finger"],
