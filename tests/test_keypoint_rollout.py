@@ -23,6 +23,7 @@ def test_the_obs_type_is_the_policys_inputs():
         obs_type_of({"observation.image": 0, "observation.environment_state": 0})
     with pytest.raises(ValueError, match="neither"):
         obs_type_of({"observation.state": 0})
+    assert obs_type_of({}) == PIXELS_OBS  # no features of its own: make_policy gives it the env's (images)
 
 
 def _ours(path: str, seed: int):

@@ -19,6 +19,8 @@ def obs_type_of(input_features) -> str:
     """The env `obs_type` whose observations hold what a policy with these input features reads (LeRobot's
     `--env.obs_type`). Chosen from the policy's own config, so a keypoint policy needs no flag of its own."""
     keys = set(input_features)
+    if not keys:  # LeRobot's make_policy gives such a config the env's features: pixels and agent_pos
+        return PIXELS_OBS
     if ENV_STATE in keys and IMAGE in keys:
         raise ValueError(f"a policy reading both {IMAGE} and {ENV_STATE}: no env obs_type gives both")
     if ENV_STATE in keys:
