@@ -51,3 +51,31 @@ def compilations(monkeypatch, tmp_path):
 
     monkeypatch.setattr(cp.Problem, "get_problem_data", counting)
     return calls
+
+
+@pytest.fixture(scope="session")
+def keypoint_policy(tmp_path_factory):
+    """A tiny keypoint policy (LeRobot's DiffusionPolicy on gym-pusht's keypoints), trained 2 steps on 3
+    replayed demonstrations: a real `pretrained_model` folder, its processors holding the data's statistics."""
+    from pathlib import Path
+
+    from lerobot_gcs_push.pusht.keypoint_training import (
+        KeypointDataConfig,
+        ScheduleConfig,
+        TrainKeypointsConfig,
+        train,
+    )
+
+    root = Path(__file__).parent.parent
+    tmp = tmp_path_factory.mktemp("keypoint_policy")
+    cfg = TrainKeypointsConfig(
+        data=KeypointDataConfig(
+            lists=[str(root / "experiments" / "pusht" / "demos" / "seed4800.json")],
+            episodes=3,
+            cache_dir=str(tmp / "cache"),
+        ),
+        schedule=ScheduleConfig(steps=2, batch_size=8, warmup_steps=1, save_every=2),
+        preset=str(root / "configs" / "policy" / "diffusion_pusht_keypoints.json"),
+        output_dir=str(tmp / "train"),
+    )
+    return str(train(cfg, progress=False))

@@ -143,3 +143,93 @@ def test_training_windows_are_what_lerobot_dataset_gives_the_diffusion_policy(tm
             np.testing.assert_allclose(batch[key][row].numpy(), item[key].numpy(), atol=1e-6, err_msg=f"{key} at {t}")
         assert batch["action_is_pad"][row].tolist() == item["action_is_pad"].tolist(), t
     assert batch["action_is_pad"][:, 0].any() and batch["action_is_pad"][:, -1].any()
+
+
+LIST2 = LIST.with_name("seed4801.json")
+
+
+def _fine_tune(tmp_path, base, steps, name):
+    return TrainKeypointsConfig(
+        data=KeypointDataConfig(lists=[str(LIST2)], episodes=2, cache_dir=str(tmp_path / "cache")),
+        schedule=ScheduleConfig(steps=steps, batch_size=8, warmup_steps=1, save_every=2),
+        preset=PRESET,
+        output_dir=str(tmp_path / name),
+        init_from=base,
+    )
+
+
+def _actions(folder, seed=7, steps=12):
+    """A policy's actions in gym-pusht from a reset, through LeRobot's loading and processors."""
+    from lerobot_gcs_push.evaluation import LearnedPolicy
+    from lerobot_gcs_push.pusht.env import GymPushTTarget
+
+    policy = LearnedPolicy(str(folder), "cpu")
+    env = GymPushTTarget(obs_type=policy.obs_type)
+    obs, info = env.reset(seed=seed)
+    policy.reset(obs, info, seed)
+    out = []
+    for _ in range(steps):
+        out.append(policy.act(obs, info))
+        obs, *_, info = env.step(out[-1])
+    return np.array(out)
+
+
+def test_a_fine_tune_starts_from_its_bases_weights_and_statistics(tmp_path, keypoint_policy, episodes):
+    """The base (conftest) learned on LIST's first 3 episodes; the fine-tune's data is another list's."""
+    from lerobot_gcs_push.pusht.keypoint_training import export, prepare
+
+    run = prepare(_fine_tune(tmp_path, keypoint_policy, 4, "ft"), progress=False)
+    base_data, new_data = stats_of(episodes), stats_of(run.data)
+    for k in ("observation.state", "observation.environment_state", "action"):
+        for s in ("min", "max", "mean", "std"):
+            np.testing.assert_allclose(run.stats[k][s], base_data[k][s], rtol=1e-6, atol=1e-6)
+    assert not np.allclose(new_data["action"]["min"], base_data["action"]["min"])  # recomputed would differ
+    # before any step the weights and their EMA are the base's: its very predictions, once saved as it was
+    a, b = run.policy.state_dict(), run.ema.state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    start = export(run.ema, run.pcfg, run.stats, tmp_path / "start")
+    base_actions = _actions(keypoint_policy)
+    np.testing.assert_array_equal(_actions(start), base_actions)
+    assert np.ptp(base_actions, axis=0).max() > 1.0
+
+
+def test_a_fine_tune_resumes_from_its_checkpoint_not_from_its_base(tmp_path, keypoint_policy):
+    from lerobot.policies.factory import make_pre_post_processors
+    from lerobot.processor import NormalizerProcessorStep
+    from safetensors.torch import load_file
+
+    whole = train(_fine_tune(tmp_path, keypoint_policy, 4, "whole"), progress=False)
+    assert train(_fine_tune(tmp_path, keypoint_policy, 4, "broken"), progress=False, stop_after_s=0.0) is None
+    broken = train(_fine_tune(tmp_path, keypoint_policy, 4, "broken"), progress=False)
+    log = (tmp_path / "broken" / "log.jsonl").read_text().splitlines()
+    assert [json.loads(line)["step"] for line in log] == [1, 2, 4]
+    a, b, base = (load_file(Path(f) / "model.safetensors") for f in (whole, broken, keypoint_policy))
+    assert all(torch.equal(a[k], b[k]) for k in a)  # went on from step 1's checkpoint, as an unbroken run
+    assert any(not torch.equal(a[k], base[k]) for k in a)  # and it did train
+
+    # the saved fine-tune normalises as its base: lerobot-eval feeds it inputs on the base's scale
+    def saved_stats(folder):
+        pre, _ = make_pre_post_processors(None, pretrained_path=str(folder))
+        return next(s for s in pre.steps if isinstance(s, NormalizerProcessorStep)).stats
+
+    stats = [saved_stats(f) for f in (whole, keypoint_policy)]
+    for k in stats[1]:
+        for s in stats[1][k]:
+            np.testing.assert_array_equal(np.asarray(stats[0][k][s]), np.asarray(stats[1][k][s]))
+    resolved = json.loads((tmp_path / "whole" / "train_config.json").read_text())["resolved"]
+    assert resolved["stats_from"] == keypoint_policy and set(resolved["outside_stats_range"]) == {
+        "observation.state",
+        "observation.environment_state",
+        "action",
+    }
+
+
+def test_init_from_must_be_a_keypoint_policy(tmp_path):
+    with pytest.raises(FileNotFoundError, match="no pretrained_model folder"):
+        _fine_tune(tmp_path, str(tmp_path), 2, "x")
+    folder = tmp_path / "image_policy"
+    folder.mkdir()
+    (folder / "model.safetensors").write_bytes(b"")
+    (folder / "config.json").write_text(json.dumps({"type": "diffusion", "input_features": {"observation.image": {}}}))
+    with pytest.raises(ValueError, match="not a keypoint diffusion policy"):
+        _fine_tune(tmp_path, str(folder), 2, "x")

@@ -26,6 +26,10 @@ def check_policy(policy: str) -> str:
             f"unknown policy {policy!r}: use {' or '.join(GCS_POLICIES)}, or a LeRobot pretrained_model "
             f"directory (config.json and model.safetensors)"
         )
+    if policy not in GCS_POLICIES:  # a policy no env observation can feed is refused before any run
+        from lerobot_gcs_push.evaluation.learned import policy_obs_type
+
+        policy_obs_type(shipped_path(policy))
     return policy
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_gcs_push.evaluation.config import GCS_POLICIES, EvaluateConfig, variant_label
-from lerobot_gcs_push.evaluation.learned import LearnedPolicy
+from lerobot_gcs_push.evaluation.learned import PIXELS_OBS, LearnedPolicy
 from lerobot_gcs_push.evaluation.records import Trajectory, _slug, video_path
 from lerobot_gcs_push.scene import episode_seed
 
@@ -37,10 +37,16 @@ class _Runner:
 
         self.cfg, self.out = cfg, out
 
-        # Made once each, the env with disturbances only if a run asks for it (gym-pusht has none).
+        # Made once each, keyed by (disturbances, obs_type): the env with disturbances only if a run asks for
+        # it (gym-pusht has none); a keypoint policy's with the observations it reads, the experts' (which
+        # read the state from info) and image policies' with pixels.
         self.envs = _Lazy(
-            lambda d: make_env(
-                cfg.env_id, disturbances=d, max_sim_time_s=cfg.timeout_s, success_threshold=cfg.success_thresholds[0]
+            lambda key: make_env(
+                cfg.env_id,
+                disturbances=key[0],
+                obs_type=key[1],
+                max_sim_time_s=cfg.timeout_s,
+                success_threshold=cfg.success_thresholds[0],
             )
         )
         self._experts: dict = {}
@@ -51,11 +57,11 @@ class _Runner:
         from lerobot_gcs_push.planning.factory import CostToGo, chunk_regret
 
         if self._cost_to_go is None:
-            self._cost_to_go = CostToGo(self.envs[False].scene)
+            self._cost_to_go = CostToGo(self.envs[False, PIXELS_OBS].scene)
         chunks = chunk_regret(self._cost_to_go, boxes, fingers, every)
         regrets = np.array([c["regret"] for c in chunks])
         large = [c for c in chunks if c["regret"] > self.cfg.large_regret_m]
-        fps = self.envs[False].fps
+        fps = self.envs[False, PIXELS_OBS].fps
         return {
             # Over the scored chunks; an unscored one stays NaN in regret_chunks and the summary counts it.
             "regret": float(np.nansum(regrets)),
@@ -72,7 +78,7 @@ class _Runner:
         if name not in self._experts:
             from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
 
-            env = self.envs[False]
+            env = self.envs[False, PIXELS_OBS]
             config = ExpertConfig(mode=name.removeprefix("gcs-"))
             expert = make_expert(env.scene, env.fps, config, self._experts.get("_planner"))
             self._experts["_planner"] = expert.planner  # one planner for both experts
@@ -81,14 +87,19 @@ class _Runner:
 
     def learned(self, path: str):
         if path not in self._learned:
+            from lerobot_gcs_push.registration import SCENES
             from lerobot_gcs_push.shipped import shipped_path
 
-            self._learned[path] = LearnedPolicy(shipped_path(path), self.cfg.device, self.envs[False].task)
+            # The env's task is its scene's: no env of the policy's obs_type need be made for it.
+            self._learned[path] = LearnedPolicy(shipped_path(path), self.cfg.device, SCENES[self.cfg.env_id].task)
         return self._learned[path]
 
     def run(self, job: dict) -> dict:
         policy, dist, i, r, ic = job["policy"], job["disturbances"], job["ic_index"], job["run"], job["ic"]
-        env = self.envs[dist]
+        actor = self.expert(policy) if policy in GCS_POLICIES else self.learned(policy)
+        env = self.envs[dist, getattr(actor, "obs_type", PIXELS_OBS)]
+        if policy not in GCS_POLICIES:
+            actor.check_env(env)
         seed = episode_seed(self.cfg.seed, (i * self.cfg.runs + r) * 2 + int(dist))
         frames = [] if job["video"] else None
         traj = Trajectory(env.scene.kind.trajectory_keys)
@@ -100,7 +111,6 @@ class _Runner:
 
         from lerobot_gcs_push.rollout import rollout
 
-        actor = self.expert(policy) if policy in GCS_POLICIES else self.learned(policy)
         res = rollout(
             env,
             actor,
@@ -129,6 +139,8 @@ class _Runner:
             "policy": policy,
             "label": label,
             "disturbances": dist,
+            # What the policy saw (pixels or gym-pusht's keypoints): `collect` records its expert the same way.
+            "obs_type": env.obs_type,
             "initial_condition_index": i,
             "box_initial": ic["box"],
             "finger_initial": ic["finger"],

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_gcs_push.evaluation import GCS_POLICIES, read_runs
+from lerobot_gcs_push.evaluation.learned import PIXELS_OBS
 from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.generate import GenerateConfig, GenerateReport, dataset_root, generate
 from lerobot_gcs_push.improve.stalls import StallRule, stall_branch_states
@@ -145,6 +146,16 @@ def rollouts_env_id(folders: list[str]) -> str:
     return ids.pop()
 
 
+def rollouts_obs_type(records: list[dict]) -> str:
+    """The observations the learned policies of these rollouts saw (each record's `obs_type`; records from
+    before it was recorded are an image policy's): the expert's demonstrations are recorded the same way,
+    so a keypoint policy's takeover data holds keypoints (and its replay list), an image policy's images."""
+    types = {rec.get("obs_type", PIXELS_OBS) for rec in records if rec["policy"] not in GCS_POLICIES}
+    if len(types) > 1:
+        raise ValueError(f"the rollouts hold policies that saw {' and '.join(sorted(types))}: collect one at a time")
+    return types.pop() if types else PIXELS_OBS
+
+
 def collect(cfg: CollectConfig) -> tuple[GenerateReport, list[dict]]:
     """Branch states from the rollouts, labelled by the closed-loop GCS expert, as a LeRobotDataset: chunks
     of large regret for the box, chunks where coverage stalls for a slider that turns."""
@@ -154,7 +165,7 @@ def collect(cfg: CollectConfig) -> tuple[GenerateReport, list[dict]]:
     for folder in cfg.rollouts:
         for rec in read_runs(Path(folder) / "runs.jsonl"):
             records.append(rec | {"_source": str(folder)})
-    if scene.rotates:
+    if scene.kind.records_coverage:
         states = stall_branch_states(records, cfg, scene, GCS_POLICIES)
         why = "no failed or slow run of a learned policy with a stall to branch from"
     else:
@@ -170,6 +181,7 @@ def collect(cfg: CollectConfig) -> tuple[GenerateReport, list[dict]]:
         root=cfg.root,
         seed=cfg.seed,
         expert="closed-loop",
+        obs_type=rollouts_obs_type(records),
         overwrite=cfg.overwrite,
         resume=cfg.resume,
         **cfg.fan_out(),

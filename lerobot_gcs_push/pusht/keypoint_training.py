@@ -5,10 +5,10 @@ loads as it is.
 Why not `lerobot-train`: on one CPU thread its data loader (a LeRobotDataset query per sample) costs as much
 as the step of this small model; here every frame sits in memory and a step is the model's alone (about
 0.9 M samples an hour on one thread). The model, its normalisation (MIN_MAX from the data's own statistics,
-keypoints included: LeRobot's diffusion default leaves `ENV` features unnormalised) and LeRobot's sampling
-(`n_obs_steps` frames before t, `horizon` actions from t, padded at the end, `drop_n_last_frames` left out)
-are LeRobot's; the schedule is the preset's (AdamW, cosine with warm-up), with an EMA of the weights (Chi et
-al. 2023's, diffusers' power schedule), which is what is saved.
+or a fine-tuned base's, `init_from`; keypoints included: LeRobot's diffusion default leaves `ENV` features
+unnormalised) and LeRobot's sampling (`n_obs_steps` frames before t, `horizon` actions from t, padded at the
+end, `drop_n_last_frames` left out) are LeRobot's; the schedule is the preset's (AdamW, cosine with warm-up),
+with an EMA of the weights (Chi et al. 2023's, diffusers' power schedule), which is what is saved.
 
 Nothing is lost to a kill: every `save_every` steps the whole state goes to `output_dir/checkpoint.pt` (fp32,
 this machine), and on request (`partial_dir`) to a small fp16 copy another machine resumes from. Each step
@@ -72,6 +72,11 @@ class TrainKeypointsConfig:
     output_dir: str = "outputs/train/pusht_keypoints"
     # Also write the small state another machine resumes from here (fp16), at every save; None: not.
     partial_dir: str | None = None
+    # A keypoint policy's pretrained_model folder to fine-tune (a round of expert takeover): the model, its
+    # weights and EMA start as the base's, and the data is normalised with the base's statistics (read from
+    # its saved preprocessor), not the new data's, so the weights see inputs on the scale they learned. A
+    # checkpoint in output_dir still takes precedence (a resumed fine-tune goes on from it). None: from scratch.
+    init_from: str | None = None
     seed: int = 1000
     threads: int = 1
 
@@ -88,6 +93,10 @@ class TrainKeypointsConfig:
             raise ValueError(f"schedule.save_every must be >= 1, got {self.schedule.save_every}")
         if not 0 <= self.schedule.ema_max < 1:
             raise ValueError(f"schedule.ema_max must be in [0, 1), got {self.schedule.ema_max}")
+        if self.init_from is not None:  # refused before the replay, which takes minutes
+            from lerobot_gcs_push.pusht.keypoint_base import check_base
+
+            check_base(self.init_from)
 
 
 def policy_config(preset: str):
@@ -157,41 +166,87 @@ def lr_at(step: int, peak: float, warmup: int, total: int) -> float:
     return peak * 0.5 * (1 + math.cos(math.pi * (step - warmup) / max(total - warmup, 1)))
 
 
+@dataclass
+class Start:
+    """What a run starts from, before its first step (or the step it resumes at)."""
+
+    pcfg: object  # the DiffusionConfig
+    stats: dict  # the normalisation: the data's, or the base's when fine-tuning
+    windows: Windows
+    policy: object
+    ema: object
+    opt: object
+    step: int
+    data: keypoint_data.Episodes
+
+
+def prepare(cfg: TrainKeypointsConfig, progress: bool = True) -> Start:
+    """The model, its EMA and optimiser (from scratch, seeded, or the base's weights), the normalised data,
+    and the step to start at (a checkpoint's, which takes precedence over `init_from`)."""
+    import torch
+    from lerobot.policies.diffusion.modeling_diffusion import DiffusionPolicy
+
+    torch.set_num_threads(cfg.threads)
+    pcfg, _ = policy_config(cfg.preset)
+    if cfg.init_from is not None:
+        from lerobot_gcs_push.pusht.keypoint_base import base_config
+
+        pcfg = base_config(cfg.init_from)
+    pcfg.device = "cpu" if pcfg.device in (None, "cuda") and not torch.cuda.is_available() else pcfg.device
+    data = keypoint_data.load(cfg.data.lists, cfg.data.episodes, cfg.data.cache_dir, progress)
+    if cfg.init_from is None:
+        stats = stats_of(data)
+    else:
+        from lerobot_gcs_push.pusht.keypoint_base import base_stats
+
+        stats = base_stats(cfg.init_from)
+    windows = Windows(data, stats, pcfg.n_obs_steps, pcfg.horizon, pcfg.drop_n_last_frames)
+
+    torch.manual_seed(cfg.seed)  # the initial weights
+    policy = DiffusionPolicy(pcfg)
+    if cfg.init_from is not None:
+        from lerobot_gcs_push.pusht.keypoint_base import base_weights
+
+        policy.load_state_dict(base_weights(cfg.init_from))
+    ema = DiffusionPolicy(pcfg)
+    ema.load_state_dict(policy.state_dict())
+    ema.requires_grad_(False)
+    opt = torch.optim.AdamW(
+        policy.parameters(), lr=pcfg.optimizer_lr, betas=pcfg.optimizer_betas, eps=pcfg.optimizer_eps,
+        weight_decay=pcfg.optimizer_weight_decay,
+    )  # fmt: skip
+    step = _resume(Path(cfg.output_dir), cfg.partial_dir, policy, ema, opt)
+    return Start(pcfg, stats, windows, policy, ema, opt, step, data)
+
+
+def outside_range(windows: Windows) -> dict[str, float]:
+    """Per feature, the share of normalised values outside [-1, 1]: data beyond the statistics' extremes
+    (a fine-tune's new data against its base's; actions out there are beyond the sampler's clip)."""
+    arrays = {**windows.obs, ACTION: windows.action}
+    return {k: round(float((v.abs() > 1).float().mean()), 6) for k, v in arrays.items()}
+
+
 def train(cfg: TrainKeypointsConfig, progress: bool = True, stop_after_s: float | None = None) -> Path | None:
     """Train (or resume) to the schedule's last step; returns the saved `pretrained_model` folder. With
     `stop_after_s`, a stage: after that much wall time the state is saved and None returned (run it again
     to go on)."""
     import torch
-    from lerobot.policies.diffusion.modeling_diffusion import DiffusionPolicy
     from tqdm.auto import tqdm
 
-    torch.set_num_threads(cfg.threads)
-    pcfg, raw = policy_config(cfg.preset)
-    pcfg.device = "cpu" if pcfg.device in (None, "cuda") and not torch.cuda.is_available() else pcfg.device
+    _, raw = policy_config(cfg.preset)
     sch = cfg.schedule
     steps = sch.steps or int(raw.get("steps", 20000))
     batch_size = sch.batch_size or int(raw.get("batch_size", 64))
-    peak = sch.lr if sch.lr is not None else pcfg.optimizer_lr
-    warmup = sch.warmup_steps if sch.warmup_steps is not None else pcfg.scheduler_warmup_steps
-    data = keypoint_data.load(cfg.data.lists, cfg.data.episodes, cfg.data.cache_dir, progress)
+    run = prepare(cfg, progress)  # the data first: a list that is not there leaves no output folder behind
     out = Path(cfg.output_dir)
     out.mkdir(parents=True, exist_ok=True)
-    stats = stats_of(data)
-    windows = Windows(data, stats, pcfg.n_obs_steps, pcfg.horizon, pcfg.drop_n_last_frames)
-
-    torch.manual_seed(cfg.seed)  # the initial weights
-    policy = DiffusionPolicy(pcfg)
-    ema = DiffusionPolicy(pcfg)
-    ema.load_state_dict(policy.state_dict())
-    ema.requires_grad_(False)
-    opt = torch.optim.AdamW(
-        policy.parameters(), lr=peak, betas=pcfg.optimizer_betas, eps=pcfg.optimizer_eps,
-        weight_decay=pcfg.optimizer_weight_decay,
-    )  # fmt: skip
-    step = _resume(out, cfg.partial_dir, policy, ema, opt)
+    pcfg, windows, policy, ema, opt, step = run.pcfg, run.windows, run.policy, run.ema, run.opt, run.step
+    peak = sch.lr if sch.lr is not None else pcfg.optimizer_lr
+    warmup = sch.warmup_steps if sch.warmup_steps is not None else pcfg.scheduler_warmup_steps
     (out / "train_config.json").write_text(json.dumps(asdict(cfg) | {"resolved": {
         "steps": steps, "batch_size": batch_size, "lr": peak, "warmup_steps": warmup,
-        "samples": len(windows), "frames": data.frames, "episodes": len(data)}}, indent=1))  # fmt: skip
+        "samples": len(windows), "frames": run.data.frames, "episodes": len(run.data),
+        "stats_from": cfg.init_from or "data", "outside_stats_range": outside_range(windows)}}, indent=1))  # fmt: skip
     log = (out / "log.jsonl").open("a")
     losses: list[float] = []
     policy.train()
@@ -228,7 +283,7 @@ def train(cfg: TrainKeypointsConfig, progress: bool = True, stop_after_s: float 
             bar.close()
             return None
     bar.close()
-    return export(ema, pcfg, stats, out / "pretrained_model")
+    return export(ema, pcfg, run.stats, out / "pretrained_model")
 
 
 def export(policy, pcfg, stats: dict, folder: Path) -> Path:
