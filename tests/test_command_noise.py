@@ -125,8 +125,10 @@ def test_generate_refuses_noise_where_it_has_no_meaning(tmp_path):
     listed.write_text(json.dumps([{"pusht_state": START, "actions": [[1.0, 2.0]]}]))
     with pytest.raises(ValueError, match="drop --command_noise_px"):
         GenerateConfig(env_id=PUSHT_ENV_ID, repo_id="local/x", initial_conditions=str(listed), command_noise_px=3.0)
-    listed.write_text(json.dumps([{"pusht_state": START, "actions": [[1.0, 2.0]], "command_noise": {"std_px": 1, "seed": 1}}]))
-    with pytest.raises(ValueError, match="no \"labels\""):
+    listed.write_text(
+        json.dumps([{"pusht_state": START, "actions": [[1.0, 2.0]], "command_noise": {"std_px": 1, "seed": 1}}])
+    )
+    with pytest.raises(ValueError, match='no "labels"'):
         GenerateConfig(env_id=PUSHT_ENV_ID, repo_id="local/x", initial_conditions=str(listed))
 
 
@@ -164,7 +166,9 @@ def test_a_dart_dataset_replays_exactly_and_teaches_its_labels(tmp_path):
     # `generate --expert=replay` rebuilds it value for value (and checks every step's run command).
     copy = GenerateConfig(**common, root=str(tmp_path / "copy"), initial_conditions=str(root / REPLAY_META))
     assert copy.expert == "replay" and generate(copy).frames == report.frames
-    again = pq.read_table(sorted((tmp_path / "copy" / "data").rglob("*.parquet"))).to_pandas().sort_values("frame_index")
+    again = (
+        pq.read_table(sorted((tmp_path / "copy" / "data").rglob("*.parquet"))).to_pandas().sort_values("frame_index")
+    )
     for key in ("action", "observation.state", "observation.environment_state", "next.reward"):
         assert np.array_equal(np.stack(again[key].to_numpy()), np.stack(table[key].to_numpy())), key
     assert json.loads((tmp_path / "copy" / REPLAY_META).read_text()) == [entry]

@@ -219,6 +219,7 @@ def test_the_stage_runner_resumes_after_kill_9_inside_each_stage(tmp_path, monke
     from safetensors.torch import load_file
 
     import lerobot_gcs_push.improve as imp
+    import lerobot_gcs_push.improve.stages as stages
 
     state, work, policy = tmp_path / "state", tmp_path / "work", tmp_path / "policy"
     log, result = tmp_path / "log.txt", tmp_path / "result.json"
@@ -253,9 +254,9 @@ def test_the_stage_runner_resumes_after_kill_9_inside_each_stage(tmp_path, monke
             recs = [{"policy": "gcs-open-loop", "disturbances": False, "success": True, "sim_time_s": 20.0}] + [
                 {"policy": me, "disturbances": d, "success": True, "sim_time_s": 20.0} for d in (False, True)
             ]
-        for folder in self.rollouts(k):
+        for folder in self.folders(k):
             records(folder, recs)
-        self.state.stages[f"r{k}.rollouts"]["scores"] = self.rollout_scores(k)
+        self.state.stages[f"r{k}.rollouts"]["scores"] = self.scores(k)
         leave(f"r{k}.rollouts")
 
     def run_finetune(self, k):
@@ -265,11 +266,11 @@ def test_the_stage_runner_resumes_after_kill_9_inside_each_stage(tmp_path, monke
 
     def run_validation(self, k):
         enter(f"r{k}.validation")
-        for folder in self.validation_dirs(k):  # the candidate 3 of 3 in each set, the current policy 0
+        for folder in self.dirs(k):  # the candidate 3 of 3 in each set, the current policy 0
             records(folder, [
                 {"policy": p, "disturbances": False, "success": ok, "sim_time_s": 25.0 if ok else 60.0,
                  "initial_condition_index": 0, "run": i}
-                for p, ok in ((self.cfg.policy, False), (str(self.candidate(k)), True)) for i in range(3)
+                for p, ok in ((self.cfg.policy, False), (str(self.finetune.candidate(k)), True)) for i in range(3)
             ])  # fmt: skip
         leave(f"r{k}.validation")
 
@@ -282,21 +283,21 @@ def test_the_stage_runner_resumes_after_kill_9_inside_each_stage(tmp_path, monke
 
         return stage
 
-    real_export = imp.improver.export_policy
+    real_export = stages.export_policy
 
     def export_policy(src, dst, **kw):
         enter("export")
         real_export(src, dst, **kw)
         leave("export")
 
-    monkeypatch.setattr(imp.Improver, "base_dataset", plain("base.demonstrations"))
-    monkeypatch.setattr(imp.Improver, "base_train", plain("base.train", lambda self: _pretrained(policy, 0.0)))
-    monkeypatch.setattr(imp.Improver, "run_rollouts", run_rollouts)
-    monkeypatch.setattr(imp.Improver, "run_collect", plain("collect"))
-    monkeypatch.setattr(imp.Improver, "run_merge", plain("merge"))
-    monkeypatch.setattr(imp.Improver, "run_finetune", run_finetune)
-    monkeypatch.setattr(imp.Improver, "run_validation", run_validation)
-    monkeypatch.setattr(imp.improver, "export_policy", export_policy)  # run_decision is the real one
+    monkeypatch.setattr(stages.Base, "dataset", plain("base.demonstrations"))
+    monkeypatch.setattr(stages.Base, "train", plain("base.train", lambda self: _pretrained(policy, 0.0)))
+    monkeypatch.setattr(stages.Rollouts, "run", run_rollouts)
+    monkeypatch.setattr(stages.Collect, "run", plain("collect"))
+    monkeypatch.setattr(stages.Merge, "run", plain("merge"))
+    monkeypatch.setattr(stages.Finetune, "run", run_finetune)
+    monkeypatch.setattr(stages.Validation, "run", run_validation)
+    monkeypatch.setattr(stages, "export_policy", export_policy)  # the decision is the real one
 
     def improve(**kw) -> int:
         cfg = imp.ImproveConfig(
@@ -478,7 +479,7 @@ def test_pusht_rounds_time_the_policy_against_the_closed_loop_expert_on_gym_push
     monkeypatch.setattr(ev, "evaluate", evaluate)
     improver = imp.Improver(cfg)
     improver.state.stages["r1.rollouts"] = {}
-    improver.run_rollouts(1)
+    improver.rollouts.run(1)
     (c,) = asked  # the hard set is empty
     assert c.env_id == "gym_pusht/PushT-v0" and c.sampler == "uniform" and c.num_initial_conditions == 100
     assert c.policies == ["gcs-closed-loop", cfg.policy] and not c.disturbances and c.timeout_s == 30.0
@@ -486,19 +487,19 @@ def test_pusht_rounds_time_the_policy_against_the_closed_loop_expert_on_gym_push
     scores = improver.state.stages["r1.rollouts"]["scores"]
     # 15 s over the expert's mean 15 s; the policy's final coverage (0.96 + 0.5) / 2
     assert scores == {"uniform": {"without": 0.5, "time_ratio": 1.0, "coverage_mean": pytest.approx(0.73)}}
-    assert not improver.targets_met(1)  # 0.5 < 0.95
+    assert not improver.rollouts.targets_met(1)  # 0.5 < 0.95
     # validation: the uniform set alone (the hard one is empty), its own seed, the policy beside the candidate
     asked.clear()
-    _pretrained(improver.candidate(1), 0.1)
-    improver.run_validation(1)
+    _pretrained(improver.finetune.candidate(1), 0.1)
+    improver.validation.run(1)
     (c,) = asked
     assert c.sampler == "uniform" and c.num_initial_conditions == 100 and c.runs == 1
-    assert c.seed == 7016 and c.policies == [cfg.policy, str(improver.candidate(1))]
+    assert c.seed == 7016 and c.policies == [cfg.policy, str(improver.finetune.candidate(1))]
     assert Path(c.output_dir) == tmp_path / "w" / "r1" / "validation_uniform"
-    assert improver.validation_dirs(1) == [Path(c.output_dir)]
+    assert improver.validation.dirs(1) == [Path(c.output_dir)]
     # decision: neither succeeds; the config's coverage_margin ships the candidate that covers more
     # (0.175 -> 0.2 on four paired starts, higher on 2, lower on 1), and its weights replace the policy's
-    cov = {cfg.policy: [0, 0, 0.5, 0.2], str(improver.candidate(1)): [0.1, 0, 0.6, 0.1]}
+    cov = {cfg.policy: [0, 0, 0.5, 0.2], str(improver.finetune.candidate(1)): [0.1, 0, 0.6, 0.1]}
     recs = [
         {"policy": p, "disturbances": False, "initial_condition_index": i, "run": 0, "seed": i, "success": False,
          "sim_time_s": 30.0, "coverage": x}
@@ -506,11 +507,11 @@ def test_pusht_rounds_time_the_policy_against_the_closed_loop_expert_on_gym_push
     ]  # fmt: skip
     (Path(c.output_dir) / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in recs))
     improver.state.stages["r1.decision"] = {}
-    improver.run_decision(1)
+    improver.decision.run(1)
     (r1,) = improver.state.rounds
     assert r1["shipped"] and "neither has a success" in r1["decision"]["reason"]
     assert load_file(Path(cfg.policy) / "model.safetensors")["w"].float().tolist() == pytest.approx([0.1, 0.1], 1e-3)
-    assert not improver.candidate(1).exists()
+    assert not improver.finetune.candidate(1).exists()
     assert cfg.validation.coverage_margin == 0.02  # fixed before round 2's validation
     with pytest.raises(ValueError, match="no hard families"):
         imp.ImproveConfig(env_id="gym_pusht/PushT-v0", train_config=cfg.train_config)
@@ -538,6 +539,7 @@ def test_pusht_rounds_start_from_the_committed_base_and_replay_its_demonstration
     import lerobot_gcs_push.generate as gen
     import lerobot_gcs_push.improve as imp
     from lerobot_gcs_push.improve.state import STATE_FILE, State
+    from lerobot_gcs_push.improve.workspace import Workspace
 
     monkeypatch.chdir(ROOT)
     _pretrained(tmp_path / "base", 0.3)
@@ -562,7 +564,7 @@ def test_pusht_rounds_start_from_the_committed_base_and_replay_its_demonstration
     def stage(self, name, run):
         raise Stop(name)
 
-    monkeypatch.setattr(imp.Improver, "stage", stage)
+    monkeypatch.setattr(Workspace, "stage", stage)
     with pytest.raises(Stop, match=r"^r1\.rollouts$"):  # no base stages: straight to round 1
         imp.Improver(parse()).run()
     w = load_file(tmp_path / "policy" / "model.safetensors")["w"]
@@ -574,7 +576,7 @@ def test_pusht_rounds_start_from_the_committed_base_and_replay_its_demonstration
 
     monkeypatch.setenv("HF_LEROBOT_HOME", str(tmp_path / "home"))
     improver = imp.Improver(parse())
-    for out in improver.rollouts(1)[1:]:
+    for out in improver.rollouts.folders(1)[1:]:
         out.mkdir(parents=True)
         (out / "runs.jsonl").write_text("")
     asked = []
@@ -587,10 +589,10 @@ def test_pusht_rounds_start_from_the_committed_base_and_replay_its_demonstration
         (root / "meta" / "gcs_push_replay.json").write_text('["episodes"]')
 
     monkeypatch.setattr(active, "collect", collect)
-    improver.run_collect(1)
-    assert asked[0].max_per_run == 4 and asked[0].rollouts == [str(improver.rollouts(1)[1])]
-    assert json.loads(improver.states_file(1).read_text()) == ["states"]
-    assert json.loads(improver.replay_file(1).read_text()) == ["episodes"]
+    improver.collect.run(1)
+    assert asked[0].max_per_run == 4 and asked[0].rollouts == [str(improver.rollouts.folders(1)[1])]
+    assert json.loads(improver.collect.states_file(1).read_text()) == ["states"]
+    assert json.loads(improver.collect.replay_file(1).read_text()) == ["episodes"]
     shutil.rmtree(tmp_path / "s" / "r1")
 
     made = []
@@ -604,17 +606,17 @@ def test_pusht_rounds_start_from_the_committed_base_and_replay_its_demonstration
     r1.mkdir(parents=True)
     (r1 / "branch_states.json").write_text(json.dumps([{"pusht_state": e["pusht_state"]} for e in pool[:2]]))
     (r1 / "replay.json").write_text(json.dumps(pool[5:7]))
-    improver.run_merge(1)
+    improver.merge.run(1)
     base, states = made
     assert base.expert == "replay" and base.episodes == 300
     assert json.loads(Path(base.initial_conditions).read_text()) == pool[:300]
     assert states.expert == "replay" and Path(states.initial_conditions) == r1 / "replay.json"
     (r1 / "replay.json").unlink()  # a round collected before the list was kept: labelled again
     made.clear()
-    improver.run_merge(1)
+    improver.merge.run(1)
     assert made[1].expert == "closed-loop" and Path(made[1].initial_conditions) == r1 / "branch_states.json"
     with pytest.raises(ValueError, match="hold 1000 episodes, base.episodes asks for 1001"):
-        imp.Improver(parse("--base.episodes=1001")).base_dataset()
+        imp.Improver(parse("--base.episodes=1001")).base.dataset()
 
     shutil.rmtree(tmp_path / "policy")  # a fresh clone in which a round had shipped and the policy was not committed
     state = State.load(tmp_path / "s" / STATE_FILE)

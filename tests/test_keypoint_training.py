@@ -130,7 +130,10 @@ def test_training_windows_are_what_lerobot_dataset_gives_the_diffusion_policy(tm
             ds.add_frame({k: v[t] for k, v in arrays.items()} | {"task": "push"})
         ds.save_episode()
     ds.finalize()
-    deltas = {k: [d / 10 for d in pcfg.observation_delta_indices] for k in ("observation.state", "observation.environment_state")}
+    deltas = {
+        k: [d / 10 for d in pcfg.observation_delta_indices]
+        for k in ("observation.state", "observation.environment_state")
+    }
     deltas["action"] = [d / 10 for d in pcfg.action_delta_indices]
     lerobot = LeRobotDataset("local/windows", root=tmp_path / "ds", delta_timestamps=deltas)
     windows = Windows(data, unit, pcfg.n_obs_steps, pcfg.horizon, pcfg.drop_n_last_frames)
