@@ -2,9 +2,10 @@
 
 A replay list (`gcs-push generate`'s `meta/gcs_push_replay.json`) holds each episode's start and the float32
 targets gym-pusht ran (and, for DART's noisy episodes, the clean labels that are learnt). Replayed in
-gym-pusht with `obs_type="environment_state_agent_pos"`, the env gives exactly what LeRobot's `pusht` env maps to `observation.state` (the agent, px) and
-`observation.environment_state` (the T's 8 keypoints, 16 values, px); each episode must end at the success
-it was recorded with, or the list does not belong to this gym-pusht.
+gym-pusht with `obs_type="environment_state_agent_pos"`, the env gives exactly what LeRobot's `pusht` env
+maps to `observation.state` (the agent, px) and `observation.environment_state` (the T's 8 keypoints, 16
+values, px); each episode must end at the success it was recorded with, or the list does not belong to
+this gym-pusht.
 """
 
 from __future__ import annotations
