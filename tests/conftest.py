@@ -1,5 +1,6 @@
 import os
 import tempfile
+from pathlib import Path
 
 import pytest
 
@@ -79,3 +80,14 @@ def keypoint_policy(tmp_path_factory):
         output_dir=str(tmp / "train"),
     )
     return str(train(cfg, progress=False))
+
+
+def evaluate_on_pusht(policy: str, out, n: int) -> list[dict]:
+    """`gcs-push evaluate` of one policy on n of gym-pusht's resets, 3 s each: its run records."""
+    from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate, read_runs
+    from lerobot_gcs_push.registration import PUSHT_ENV_ID
+
+    cfg = EvaluateConfig(env_id=PUSHT_ENV_ID, policies=[policy], num_initial_conditions=n, runs=1, timeout_s=3.0,
+                         videos=0, output_dir=str(out))  # fmt: skip
+    evaluate(cfg)
+    return read_runs(Path(out) / "runs.jsonl")

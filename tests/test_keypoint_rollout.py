@@ -7,8 +7,9 @@ import json
 import numpy as np
 import pytest
 import torch
+from conftest import evaluate_on_pusht
 
-from lerobot_gcs_push.evaluation import EvaluateConfig, LearnedPolicy, evaluate, read_runs
+from lerobot_gcs_push.evaluation import LearnedPolicy
 from lerobot_gcs_push.evaluation.learned import KEYPOINTS_OBS, PIXELS_OBS, obs_type_of
 from lerobot_gcs_push.pusht.env import GymPushTTarget
 from lerobot_gcs_push.registration import PUSHT_ENV_ID, SCENES
@@ -87,17 +88,7 @@ def test_the_batch_and_actions_are_lerobots_own_for_the_same_observations(keypoi
 
 def test_evaluate_runs_a_keypoint_policy_and_records_its_coverage_at_every_step(keypoint_policy, tmp_path):
     out = tmp_path / "eval"
-    cfg = EvaluateConfig(
-        env_id=PUSHT_ENV_ID,
-        policies=[keypoint_policy],
-        num_initial_conditions=2,
-        runs=1,
-        timeout_s=3.0,
-        videos=0,
-        output_dir=str(out),
-    )
-    evaluate(cfg)
-    records = read_runs(out / "runs.jsonl")
+    records = evaluate_on_pusht(keypoint_policy, out, 2)
     ics = json.loads((out / "settings.json").read_text())["initial_conditions"]
     scene = SCENES[PUSHT_ENV_ID]
     assert len(records) == 2

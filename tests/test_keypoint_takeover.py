@@ -7,13 +7,13 @@ import json
 
 import numpy as np
 import pytest
+from conftest import evaluate_on_pusht
 
-from lerobot_gcs_push.evaluation import EvaluateConfig, LearnedPolicy, evaluate, read_runs
+from lerobot_gcs_push.evaluation import LearnedPolicy
 from lerobot_gcs_push.generate.replay import REPLAY_META
 from lerobot_gcs_push.improve.collect import CollectConfig, collect, rollouts_obs_type
 from lerobot_gcs_push.pusht import keypoint_data
 from lerobot_gcs_push.pusht.env import GymPushTTarget
-from lerobot_gcs_push.registration import PUSHT_ENV_ID
 
 
 def _policy_obs_at(path: str, ic: dict, seed: int, step: int) -> dict:
@@ -29,18 +29,7 @@ def _policy_obs_at(path: str, ic: dict, seed: int, step: int) -> dict:
 
 def test_collect_on_keypoint_rollouts_writes_keypoint_demonstrations_from_the_policys_states(keypoint_policy, tmp_path):
     rollouts = tmp_path / "rollouts"
-    evaluate(
-        EvaluateConfig(
-            env_id=PUSHT_ENV_ID,
-            policies=[keypoint_policy],
-            num_initial_conditions=1,
-            runs=1,
-            timeout_s=3.0,
-            videos=0,
-            output_dir=str(rollouts),
-        )
-    )
-    records = read_runs(rollouts / "runs.jsonl")
+    records = evaluate_on_pusht(keypoint_policy, rollouts, 1)
     assert rollouts_obs_type(records) == "environment_state_agent_pos"
     root = tmp_path / "takeover"
     # two states of the run, its first and last startable chunk starts: two expert episodes, under a minute

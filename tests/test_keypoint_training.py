@@ -50,13 +50,14 @@ def test_a_list_that_does_not_replay_to_its_success_is_refused(tmp_path):
         keypoint_data.read_lists([LIST], 10**6)
 
 
-def _config(tmp_path, steps, name="run", partial=None):
+def _config(tmp_path, steps, name="run", partial=None, lst=LIST, episodes=3, warmup=2, init_from=None):
     return TrainKeypointsConfig(
-        data=KeypointDataConfig(lists=[str(LIST)], episodes=3, cache_dir=str(tmp_path / "cache")),
-        schedule=ScheduleConfig(steps=steps, batch_size=8, warmup_steps=2, save_every=2),
+        data=KeypointDataConfig(lists=[str(lst)], episodes=episodes, cache_dir=str(tmp_path / "cache")),
+        schedule=ScheduleConfig(steps=steps, batch_size=8, warmup_steps=warmup, save_every=2),
         preset=PRESET,
         output_dir=str(tmp_path / name),
         partial_dir=partial,
+        init_from=init_from,
     )
 
 
@@ -152,13 +153,7 @@ LIST2 = LIST.with_name("seed4801.json")
 
 
 def _fine_tune(tmp_path, base, steps, name):
-    return TrainKeypointsConfig(
-        data=KeypointDataConfig(lists=[str(LIST2)], episodes=2, cache_dir=str(tmp_path / "cache")),
-        schedule=ScheduleConfig(steps=steps, batch_size=8, warmup_steps=1, save_every=2),
-        preset=PRESET,
-        output_dir=str(tmp_path / name),
-        init_from=base,
-    )
+    return _config(tmp_path, steps, name, lst=LIST2, episodes=2, warmup=1, init_from=base)
 
 
 def _actions(folder, seed=7, steps=12):

@@ -71,29 +71,11 @@ class Rollouts(Stage):
         return [self.ws.work / f"r{k}" / f"rollouts_{s}" for s in ("hard", "uniform")]
 
     def run(self, k: int) -> None:
-        from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate
-
         r, ws = self.cfg.round, self.ws
         sets = ((self.cfg.hard_sampler, r.hard, 0), ("uniform", r.uniform, 1))
         for (sampler, n, off), out in zip(sets, self.folders(k)):
-            if n:
-                evaluate(
-                    EvaluateConfig(
-                        # GCS beside, for the time target; `collect` branches from the learned policy only.
-                        policies=[ws.expert, self.cfg.policy],
-                        env_id=self.cfg.env_id,
-                        sampler=sampler,
-                        seed=ws.seed(k, off),
-                        num_initial_conditions=n,
-                        runs=1,
-                        disturbances=r.disturbances,
-                        timeout_s=r.timeout_s,
-                        **self.cfg.fan_out(),
-                        videos=0,
-                        device=self.cfg.device,
-                        output_dir=str(out),
-                    )
-                )
+            if n:  # GCS beside, for the time target; `collect` branches from the learned policy only
+                ws.evaluate([ws.expert, self.cfg.policy], sampler, ws.seed(k, off), n, 1, out, r.disturbances)
         self.state.stages[f"r{k}.rollouts"]["scores"] = self.scores(k)
 
     def scores(self, k: int) -> dict:
@@ -260,25 +242,9 @@ class Validation(Stage):
         return [out for *_, out in self.sets(k)]
 
     def run(self, k: int) -> None:
-        from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate
-
-        v = self.cfg.validation
+        policies = [self.cfg.policy, str(self.finetune.candidate(k))]
         for sampler, n, off, out in self.sets(k):
-            evaluate(
-                EvaluateConfig(
-                    policies=[self.cfg.policy, str(self.finetune.candidate(k))],
-                    env_id=self.cfg.env_id,
-                    sampler=sampler,
-                    seed=self.ws.seed(k, off),
-                    num_initial_conditions=n,
-                    runs=v.runs,
-                    timeout_s=self.cfg.round.timeout_s,
-                    **self.cfg.fan_out(),
-                    videos=0,
-                    device=self.cfg.device,
-                    output_dir=str(out),
-                )
-            )
+            self.ws.evaluate(policies, sampler, self.ws.seed(k, off), n, self.cfg.validation.runs, out)
 
 
 class Decision(Stage):

@@ -59,6 +59,28 @@ class Workspace:
 
         return f"gcs-{SCENES[self.cfg.env_id].kind.default_expert}"
 
+    def evaluate(self, policies: list[str], sampler: str, seed: int, n: int, runs: int, out: Path,
+                 disturbances: bool = False) -> None:  # fmt: skip
+        """`gcs-push evaluate` of `policies` on n starts, with the run's fan-out, device and timeout."""
+        from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate
+
+        evaluate(
+            EvaluateConfig(
+                policies=policies,
+                env_id=self.cfg.env_id,
+                sampler=sampler,
+                seed=seed,
+                num_initial_conditions=n,
+                runs=runs,
+                disturbances=disturbances,
+                timeout_s=self.cfg.round.timeout_s,
+                **self.cfg.fan_out(),
+                videos=0,
+                device=self.cfg.device,
+                output_dir=str(out),
+            )
+        )
+
     def train_to(
         self, dst: Path, *, repo_id: str, steps: int, seed: int, lr: float | None, init: str | None, job: str
     ) -> None:

@@ -7,8 +7,9 @@ as the step of this small model; here every frame sits in memory and a step is t
 0.9 M samples an hour on one thread). The model, its normalisation (MIN_MAX from the data's own statistics,
 or a fine-tuned base's, `init_from`; keypoints included: LeRobot's diffusion default leaves `ENV` features
 unnormalised) and LeRobot's sampling (`n_obs_steps` frames up to t, `horizon` actions from the first of
-them, padded at both ends, `drop_n_last_frames` left out) are LeRobot's; the schedule is the preset's (AdamW, cosine with warm-up),
-with an EMA of the weights (Chi et al. 2023's, diffusers' power schedule), which is what is saved.
+them, padded at both ends, `drop_n_last_frames` left out) are LeRobot's; the schedule is the preset's
+(AdamW, cosine with warm-up), with an EMA of the weights (Chi et al. 2023's, diffusers' power schedule),
+which is what is saved.
 
 Nothing is lost to a kill: every `save_every` steps the whole state goes to `output_dir/checkpoint.pt` (fp32,
 this machine), and on request (`partial_dir`) to a small fp16 copy another machine resumes from. Each step
