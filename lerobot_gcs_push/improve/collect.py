@@ -200,5 +200,5 @@ def collect(cfg: CollectConfig) -> tuple[GenerateReport, list[dict]]:
         with atomic_path(states_path) as tmp:
             tmp.write_text(text)
     # else generate() refuses the existing dataset or interrupted run, and their list stays as it was.
-    gen.initial_conditions = str(states_path)
+    gen.starts.initial_conditions = str(states_path)
     return generate(gen), states
