@@ -21,6 +21,10 @@ from lerobot_gcs_push.settings import flat_names
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = {"starts": StartsConfig, "expert": ExpertConfig, "output": OutputConfig}
+# A command's own option of a shared name, and why it is not the shared one.
+OWN = {
+    ("evaluate", "overwrite"): "deletes a folder of records (--output_dir), which has no repo_id and always continues",
+}
 
 
 def test_each_shared_option_is_declared_once():
@@ -30,7 +34,7 @@ def test_each_shared_option_is_declared_once():
         nested = {f.name for f in dataclasses.fields(cls) if f.name in SHARED}
         if not nested:
             continue
-        own = {f.name for f in dataclasses.fields(cls)} - nested
+        own = {f.name for f in dataclasses.fields(cls)} - nested - {o for c, o in OWN if c == name}
         assert not own & shared, (name, own & shared)
         assert set(flat_names(cls)) >= {f.name for n in nested for f in dataclasses.fields(SHARED[n])} - {"mode"}
 
@@ -146,3 +150,34 @@ def test_a_config_file_may_spell_the_options_nested(tmp_path):
     path.write_text(json.dumps({"starts": {"seed": 9}, "output": {"repo_id": "local/f"}, "episodes": 3}))
     cfg = parse("generate", [f"--config_path={path}", "--expert=closed-loop"])
     assert (cfg.starts.seed, cfg.output.repo_id, cfg.episodes, cfg.expert.mode) == (9, "local/f", 3, "closed-loop")
+
+
+def test_evaluate_nests_the_starts_and_the_expert():
+    flat = parse("evaluate", ["--policies=[gcs-closed-loop]", "--sampler=hard", "--disturbances=true", "--method=micp"])
+    nested = parse(
+        "evaluate",
+        ["--policies=[gcs-closed-loop]", "--starts.sampler=hard", "--starts.disturbances=true", "--expert.method=micp"],
+    )
+    assert flat == nested and flat.starts.seed == 3000  # the hard set's seed, as before
+    assert parse("evaluate", ["--seed=4"]).starts.sampler == "uniform"  # evaluate's default, whatever is given
+    with pytest.raises(ValueError, match="--policies"):  # the policies name the experts' modes
+        parse("evaluate", ["--policies=[gcs-closed-loop]", "--expert=open-loop"])
+    with pytest.raises(ValueError, match="replan_every"):
+        parse("evaluate", ["--policies=[gcs-closed-loop]", "--expert.replan_every=0"])
+
+
+def test_an_evaluation_records_the_expert_settings_it_was_given(tmp_path, monkeypatch):
+    """A folder made with other expert settings is refused, not continued; one made without reads as before."""
+    from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate
+
+    monkeypatch.setattr("lerobot_gcs_push.evaluation.protocol._run_all", lambda *a: None)  # no runs: settings only
+    monkeypatch.setattr("lerobot_gcs_push.evaluation.protocol.summarize", lambda *a, **k: {}, raising=False)
+    common = dict(policies=["gcs-closed-loop"], num_initial_conditions=1, runs=1, output_dir=str(tmp_path / "e"))
+    try:
+        evaluate(EvaluateConfig(**common))
+    except Exception:  # the summary of no runs may fail: the settings are written before
+        pass
+    settings = json.loads((tmp_path / "e" / "settings.json").read_text())
+    assert "replan_every" not in settings and "method" not in settings
+    with pytest.raises(FileExistsError, match="other initial conditions or settings"):
+        evaluate(EvaluateConfig(**common, replan_every=3))

@@ -143,15 +143,14 @@ class ExpertConfig(Shared):
         if (self.commands != "position" or self.lead_actions is not None) and not kind.lerobot_pusht_data:
             raise ValueError(f"expert.commands and expert.lead_actions are gym-pusht's; {env_id} takes neither")
 
-    def non_defaults(self) -> dict:
-        """The settings that differ from the defaults, by flat name, except the mode and method (which records
-        always hold): what a record adds, so that one made without them reads as it always did."""
+    def non_defaults(self, always: tuple[str, ...] = ("mode", "method")) -> dict:
+        """The settings that differ from the defaults, by flat name, but those a record `always` holds (its
+        own way): what a record adds, so that one made without them reads as it always did."""
         default = ExpertConfig()
-        keep = ("mode", "method")
         return {
             f.name: getattr(self, f.name)
             for f in fields(self)
-            if f.name not in keep and getattr(self, f.name) != getattr(default, f.name)
+            if f.name not in always and getattr(self, f.name) != getattr(default, f.name)
         }
 
 
