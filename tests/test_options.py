@@ -24,6 +24,7 @@ SHARED = {"starts": StartsConfig, "expert": ExpertConfig, "output": OutputConfig
 # A command's own option of a shared name, and why it is not the shared one.
 OWN = {
     ("evaluate", "overwrite"): "deletes a folder of records (--output_dir), which has no repo_id and always continues",
+    ("collect", "seed"): "seeds the choice of branch states; collect's starts are the rollouts' states, no sampler's",
 }
 
 
@@ -181,3 +182,13 @@ def test_an_evaluation_records_the_expert_settings_it_was_given(tmp_path, monkey
     assert "replan_every" not in settings and "method" not in settings
     with pytest.raises(FileExistsError, match="other initial conditions or settings"):
         evaluate(EvaluateConfig(**common, replan_every=3))
+
+
+def test_collect_nests_the_output(tmp_path):
+    (tmp_path / "runs.jsonl").write_text("")
+    rollouts = f"--rollouts=[{tmp_path}]"
+    flat = parse("collect", [rollouts, "--repo_id=local/a", "--resume=true", "--seed=2"])
+    assert flat == parse("collect", [rollouts, "--output.repo_id=local/a", "--output.resume=true", "--seed=2"])
+    assert parse("collect", [rollouts]).output.repo_id == "local/gcs_push_active"
+    with pytest.raises(ValueError, match="not both"):
+        parse("collect", [rollouts, "--overwrite=true", "--resume=true"])
