@@ -59,7 +59,13 @@ def test_the_python_api_takes_the_flat_names_too():
     cfg = GenerateConfig(seed=7, repo_id="local/x", expert="closed-loop", commands="steer", env_id="gym_pusht/PushT-v0")
     assert cfg == parse(
         "generate",
-        ["--seed=7", "--repo_id=local/x", "--expert=closed-loop", "--expert.commands=steer", "--env_id=gym_pusht/PushT-v0"],
+        [
+            "--seed=7",
+            "--repo_id=local/x",
+            "--expert=closed-loop",
+            "--expert.commands=steer",
+            "--env_id=gym_pusht/PushT-v0",
+        ],
     )
     assert (cfg.starts.seed, cfg.output.repo_id, cfg.expert.mode, cfg.expert.lead()) == (7, "local/x", "closed-loop", 2)
     # A flat option lands on a given nested config (dataclasses.replace passes every field).
@@ -114,10 +120,18 @@ def _doc_commands() -> list[tuple[str, str, list[str]]]:
     """Every `gcs-push COMMAND ...` of the README, docs/, configs/README.md and the Makefile, with its
     continuation lines, as (where, command, args)."""
     out = []
-    for path in [REPO / "README.md", REPO / "Makefile", *sorted((REPO / "docs").glob("*.md")), REPO / "configs/README.md"]:
+    for path in [
+        REPO / "README.md",
+        REPO / "Makefile",
+        *sorted((REPO / "docs").glob("*.md")),
+        REPO / "configs/README.md",
+    ]:
         text = path.read_text().replace("\\\n", " ")
         for line in text.splitlines():
-            for m in re.finditer(r"gcs-push (generate|evaluate|collect|demo)((?: +--[^\s`|#]+(?: +'[^']*'| +[^-\s`|#][^\s`|#]*)?)*)", line):
+            for m in re.finditer(
+                r"gcs-push (generate|evaluate|collect|demo)((?: +--[^\s`|#]+(?: +'[^']*'| +[^-\s`|#][^\s`|#]*)?)*)",
+                line,
+            ):
                 args = shlex.split(m.group(2).replace("$(DEMO_ARGS)", ""))
                 if not args and line[m.end() : m.end() + 1] == "`":  # named in prose, not a command
                     continue
@@ -133,7 +147,9 @@ def test_the_docs_have_commands_to_check():
     assert len(DOC_COMMANDS) >= 10 and {c for _, c, _ in DOC_COMMANDS} >= {"generate", "evaluate", "demo"}
 
 
-@pytest.mark.parametrize("where, command, args", DOC_COMMANDS, ids=[f"{w}: {c} {' '.join(a)}" for w, c, a in DOC_COMMANDS])
+@pytest.mark.parametrize(
+    "where, command, args", DOC_COMMANDS, ids=[f"{w}: {c} {' '.join(a)}" for w, c, a in DOC_COMMANDS]
+)
 def test_every_documented_command_parses(where, command, args, monkeypatch):
     """Each documented command's flags are known and its values valid; only a file or Ray the machine lacks
     may stop it (a policy folder the docs train first, Ray not installed)."""

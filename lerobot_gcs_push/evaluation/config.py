@@ -146,4 +146,7 @@ def initial_conditions(cfg: EvaluateConfig) -> list[dict]:
         for i, ic in enumerate(ics):
             scene.validate_start(ic, f"initial condition {i}")
         return ics
-    return [ic.to_json() for ic in sample_starts(scene, cfg.num_initial_conditions, seed=starts.seed, sampler=starts.sampler)]
+    return [
+        ic.to_json()
+        for ic in sample_starts(scene, cfg.num_initial_conditions, seed=starts.seed, sampler=starts.sampler)
+    ]

@@ -91,7 +91,9 @@ class _Runner:
             from lerobot_gcs_push.shipped import shipped_path
 
             # The env's task is its scene's: no env of the policy's obs_type need be made for it.
-            self._learned[path] = LearnedPolicy(shipped_path(path), self.cfg.device, SCENES[self.cfg.starts.env_id].task)
+            self._learned[path] = LearnedPolicy(
+                shipped_path(path), self.cfg.device, SCENES[self.cfg.starts.env_id].task
+            )
         return self._learned[path]
 
     def run(self, job: dict) -> dict:

@@ -87,10 +87,14 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
     if cfg.starts.initial_conditions:
         # A file's other keys (a branch state's source) stay out of the jobs.
         keys = (*START_KEYS, *REPLAY_KEYS)
-        ics = [{k: ic[k] for k in keys if k in ic} for ic in load_initial_conditions(cfg.starts.initial_conditions, scene)]
+        ics = [
+            {k: ic[k] for k in keys if k in ic} for ic in load_initial_conditions(cfg.starts.initial_conditions, scene)
+        ]
     else:
         max_attempts = int(np.ceil(cfg.episodes * cfg.max_attempts_factor)) + 10
-        ics = [ic.to_json() for ic in sample_starts(scene, max_attempts, seed=cfg.starts.seed, sampler=cfg.starts.sampler)]
+        ics = [
+            ic.to_json() for ic in sample_starts(scene, max_attempts, seed=cfg.starts.seed, sampler=cfg.starts.sampler)
+        ]
     finished = {s["start"]: s for s in map(_read_shard, shards.glob("shard_*")) if s is not None}
     bar = _progress(cfg)
     failures = 0
@@ -185,7 +189,9 @@ def _merge(cfg: GenerateConfig, root: Path, shard_roots: list[Path], metas: list
     staging = root.with_name(root.name + ".staging")
     shutil.rmtree(staging, ignore_errors=True)
     with _batched_image_embedding():
-        aggregate_datasets([cfg.output.repo_id] * len(shard_roots), cfg.output.repo_id, roots=shard_roots, aggr_root=staging)
+        aggregate_datasets(
+            [cfg.output.repo_id] * len(shard_roots), cfg.output.repo_id, roots=shard_roots, aggr_root=staging
+        )
     (staging / EPISODES_META).write_text(
         "".join(json.dumps({"episode_index": i, **meta}) + "\n" for i, meta in enumerate(metas))
     )
