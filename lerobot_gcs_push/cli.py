@@ -21,6 +21,7 @@ from lerobot_gcs_push.improve.collect import CollectConfig
 from lerobot_gcs_push.pusht.keypoint_training import TrainKeypointsConfig
 from lerobot_gcs_push.registration import ENV_ID
 from lerobot_gcs_push.scene import is_finite_number, load_initial_conditions
+from lerobot_gcs_push.settings import flat_argv
 from lerobot_gcs_push.shipped import shipped_path
 from lerobot_gcs_push.workers import FanOut
 
@@ -322,9 +323,23 @@ def _root_cause(err: BaseException) -> BaseException:
     return err
 
 
-def main(argv: list[str] | None = None) -> int:
+def parse(command: str, args: list[str]):
+    """The command's config from its flags (flat, `--seed=3`, or nested, `--starts.seed=3`), validated; a bad
+    flag or value raises a ValueError (or FileNotFoundError) whose message names the field."""
     import draccus
 
+    config_class = COMMANDS[command][0]
+    # draccus wraps a config's own ValueError (from __post_init__) in a ParsingError: show the cause.
+    try:
+        return draccus.parse(config_class, args=flat_argv(config_class, args), prog=f"gcs-push {command}")
+    except draccus.utils.DecodingError as err:  # names the field: "`runs`: Couldn't parse 'many' into an int"
+        raise ValueError(str(err)) from None
+    except draccus.utils.ParsingError as err:
+        cause = _root_cause(err)
+        raise (cause if isinstance(cause, (ValueError, FileNotFoundError)) else ValueError(str(cause))) from None
+
+
+def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] not in COMMANDS:
         asked = argv[:1] in (["-h"], ["--help"])
@@ -332,17 +347,9 @@ def main(argv: list[str] | None = None) -> int:
         if argv and not asked:
             print(f"\nerror: unknown command {argv[0]!r}", file=sys.stderr)
         return 0 if asked else 2
-    config_class, run, _ = COMMANDS[argv[0]]
     try:
-        # draccus wraps a config's own ValueError (from __post_init__) in a ParsingError: show the cause.
-        try:
-            cfg = draccus.parse(config_class, args=argv[1:], prog=f"gcs-push {argv[0]}")
-        except draccus.utils.DecodingError as err:  # names the field: "`runs`: Couldn't parse 'many' into an int"
-            raise ValueError(str(err)) from None
-        except draccus.utils.ParsingError as err:
-            cause = _root_cause(err)
-            raise (cause if isinstance(cause, (ValueError, FileNotFoundError)) else ValueError(str(cause))) from None
-        run(cfg)
+        cfg = parse(argv[0], argv[1:])
+        COMMANDS[argv[0]][1](cfg)
     except (ValueError, FileNotFoundError, FileExistsError, RuntimeError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

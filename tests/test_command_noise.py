@@ -149,7 +149,7 @@ def test_a_dart_dataset_replays_exactly_and_teaches_its_labels(tmp_path):
     cfg = GenerateConfig(**common, root=str(tmp_path / "src"), initial_conditions=str(starts), command_noise_px=4.0)
     report = generate(cfg)
     assert report.episodes == 1
-    root = Path(cfg.root)
+    root = Path(cfg.output.root)
     (meta,) = read_episode_metadata(root)
     (entry,) = json.loads((root / REPLAY_META).read_text())
     table = pq.read_table(sorted((root / "data").rglob("*.parquet"))).to_pandas().sort_values("frame_index")
@@ -165,7 +165,7 @@ def test_a_dart_dataset_replays_exactly_and_teaches_its_labels(tmp_path):
     np.testing.assert_array_equal(data.arrays["observation.state"], np.stack(table["observation.state"].to_numpy()))
     # `generate --expert=replay` rebuilds it value for value (and checks every step's run command).
     copy = GenerateConfig(**common, root=str(tmp_path / "copy"), initial_conditions=str(root / REPLAY_META))
-    assert copy.expert == "replay" and generate(copy).frames == report.frames
+    assert copy.expert.mode == "replay" and generate(copy).frames == report.frames
     again = (
         pq.read_table(sorted((tmp_path / "copy" / "data").rglob("*.parquet"))).to_pandas().sort_values("frame_index")
     )

@@ -170,7 +170,7 @@ def test_demonstrations_of_the_rotating_box_replay_in_the_sim_and_end_at_the_goa
     root = tmp_path / "ds"
     cfg = GenerateConfig(env_id=SE2_ENV_ID, episodes=2, repo_id="local/se2_demos", root=str(root), workers=1,
                          progress=False)  # fmt: skip
-    assert cfg.expert == "closed-loop"
+    assert cfg.expert.mode == "closed-loop"
     report = generate(cfg)
     ds = LeRobotDataset("local/se2_demos", root=root, video_backend="pyav")
     assert ds.meta.total_episodes == 2

@@ -47,8 +47,8 @@ def _episodes(ds):
 
 def test_dataset_loads_from_the_lerobot_cache_with_the_right_features(reference):
     cfg, report = reference
-    assert Path(report.root) == Path(os.environ["HF_LEROBOT_HOME"]) / cfg.repo_id
-    ds = _load(cfg.repo_id)  # no root: LeRobot's own cache lookup, offline
+    assert Path(report.root) == Path(os.environ["HF_LEROBOT_HOME"]) / cfg.output.repo_id
+    ds = _load(cfg.output.repo_id)  # no root: LeRobot's own cache lookup, offline
     assert ds.meta.total_episodes == N and ds.fps == 10
     assert set(FEATURE_KEYS) <= set(ds.meta.features)
     assert ds.meta.features["observation.image"]["dtype"] == "image"
@@ -70,7 +70,7 @@ def test_frames_match_the_planner_and_the_initial_condition(reference):
     from lerobot_gcs_push.sim import PushSim
 
     cfg, report = reference
-    ds = _load(cfg.repo_id)
+    ds = _load(cfg.output.repo_id)
     scene = Scene()
     planner = GcsPlanner(scene)
     sim = PushSim(scene, render_size=None)
@@ -167,7 +167,7 @@ def test_a_merge_holds_each_datasets_episodes_in_turn(reference):
         return pa.concat_tables([pq.read_table(f) for f in sorted((root / "data").rglob("*.parquet"))])
 
     cfg, report = reference
-    twice = merge_datasets([cfg.repo_id, cfg.repo_id], "local/test_gcs_push_twice", desc="test merge")
+    twice = merge_datasets([cfg.output.repo_id, cfg.output.repo_id], "local/test_gcs_push_twice", desc="test merge")
     assert _load("local/test_gcs_push_twice").meta.total_episodes == 2 * N
     one, two = table(Path(report.root)), table(twice)
     assert two.num_rows == 2 * one.num_rows == 2 * report.frames
@@ -177,10 +177,10 @@ def test_a_merge_holds_each_datasets_episodes_in_turn(reference):
         again = [v + shift[name] for v in values] if name in shift else values
         assert two.column(name).to_pylist() == values + again, name
     stamp = (twice / "meta" / "info.json").stat().st_mtime_ns
-    assert merge_datasets([cfg.repo_id], "local/test_gcs_push_twice") == twice
+    assert merge_datasets([cfg.output.repo_id], "local/test_gcs_push_twice") == twice
     assert (twice / "meta" / "info.json").stat().st_mtime_ns == stamp
     with pytest.raises(FileNotFoundError, match="local/no_such_dataset"):
-        merge_datasets([cfg.repo_id, "local/no_such_dataset"], "local/test_gcs_push_other")
+        merge_datasets([cfg.output.repo_id, "local/no_such_dataset"], "local/test_gcs_push_other")
 
 
 def test_bad_settings_are_named(tmp_path, monkeypatch):
@@ -238,9 +238,9 @@ def test_lerobot_dataset_viz_reads_a_generated_dataset(reference, tmp_path):
     viz = shutil.which("lerobot-dataset-viz", path=str(Path(sys.executable).parent))
     assert viz, "make install installs lerobot[viz], which provides lerobot-dataset-viz"
     cfg, report = reference
-    args = [viz, "--repo-id", cfg.repo_id, "--episode-index", "1", "--save", "1", "--output-dir", str(tmp_path)]
+    args = [viz, "--repo-id", cfg.output.repo_id, "--episode-index", "1", "--save", "1", "--output-dir", str(tmp_path)]
     subprocess.run([*args, "--num-workers", "0"], check=True, capture_output=True, timeout=300)
-    rrd = tmp_path / f"{cfg.repo_id.replace('/', '_')}_episode_1.rrd"
+    rrd = tmp_path / f"{cfg.output.repo_id.replace('/', '_')}_episode_1.rrd"
     assert rrd.stat().st_size > 10_000  # 96x96 frames of the episode, not an empty recording
     printed = subprocess.run(
         [str(Path(sys.executable).parent / "rerun"), "rrd", "print", str(rrd)],
@@ -248,4 +248,4 @@ def test_lerobot_dataset_viz_reads_a_generated_dataset(reference, tmp_path):
         text=True,
         timeout=120,
     )
-    assert f'"{cfg.repo_id}/episode_1"' in printed.stdout + printed.stderr
+    assert f'"{cfg.output.repo_id}/episode_1"' in printed.stdout + printed.stderr

@@ -481,8 +481,8 @@ def test_pusht_rounds_time_the_policy_against_the_closed_loop_expert_on_gym_push
     improver.state.stages["r1.rollouts"] = {}
     improver.rollouts.run(1)
     (c,) = asked  # the hard set is empty
-    assert c.env_id == "gym_pusht/PushT-v0" and c.sampler == "uniform" and c.num_initial_conditions == 100
-    assert c.policies == ["gcs-closed-loop", cfg.policy] and not c.disturbances and c.timeout_s == 30.0
+    assert c.starts.env_id == "gym_pusht/PushT-v0" and c.starts.sampler == "uniform" and c.num_initial_conditions == 100
+    assert c.policies == ["gcs-closed-loop", cfg.policy] and not c.starts.disturbances and c.timeout_s == 30.0
     assert not c.regret  # no cost-to-go through contact
     scores = improver.state.stages["r1.rollouts"]["scores"]
     # 15 s over the expert's mean 15 s; the policy's final coverage (0.96 + 0.5) / 2
@@ -493,8 +493,8 @@ def test_pusht_rounds_time_the_policy_against_the_closed_loop_expert_on_gym_push
     _pretrained(improver.finetune.candidate(1), 0.1)
     improver.validation.run(1)
     (c,) = asked
-    assert c.sampler == "uniform" and c.num_initial_conditions == 100 and c.runs == 1
-    assert c.seed == 7016 and c.policies == [cfg.policy, str(improver.finetune.candidate(1))]
+    assert c.starts.sampler == "uniform" and c.num_initial_conditions == 100 and c.runs == 1
+    assert c.starts.seed == 7016 and c.policies == [cfg.policy, str(improver.finetune.candidate(1))]
     assert Path(c.output_dir) == tmp_path / "w" / "r1" / "validation_uniform"
     assert improver.validation.dirs(1) == [Path(c.output_dir)]
     # decision: neither succeeds; the config's coverage_margin ships the candidate that covers more
@@ -583,7 +583,7 @@ def test_pusht_rounds_start_from_the_committed_base_and_replay_its_demonstration
 
     def collect(c):
         asked.append(c)
-        root = tmp_path / "home" / c.repo_id
+        root = tmp_path / "home" / c.output.repo_id
         (root / "meta").mkdir(parents=True)
         root.with_name(root.name + ".branch_states.json").write_text('["states"]')
         (root / "meta" / "gcs_push_replay.json").write_text('["episodes"]')
@@ -608,13 +608,13 @@ def test_pusht_rounds_start_from_the_committed_base_and_replay_its_demonstration
     (r1 / "replay.json").write_text(json.dumps(pool[5:7]))
     improver.merge.run(1)
     base, states = made
-    assert base.expert == "replay" and base.episodes == 300
-    assert json.loads(Path(base.initial_conditions).read_text()) == pool[:300]
-    assert states.expert == "replay" and Path(states.initial_conditions) == r1 / "replay.json"
+    assert base.expert.mode == "replay" and base.episodes == 300
+    assert json.loads(Path(base.starts.initial_conditions).read_text()) == pool[:300]
+    assert states.expert.mode == "replay" and Path(states.starts.initial_conditions) == r1 / "replay.json"
     (r1 / "replay.json").unlink()  # a round collected before the list was kept: labelled again
     made.clear()
     improver.merge.run(1)
-    assert made[1].expert == "closed-loop" and Path(made[1].initial_conditions) == r1 / "branch_states.json"
+    assert made[1].expert.mode == "closed-loop" and Path(made[1].starts.initial_conditions) == r1 / "branch_states.json"
     with pytest.raises(ValueError, match="hold 1000 episodes, base.episodes asks for 1001"):
         imp.Improver(parse("--base.episodes=1001")).base.dataset()
 

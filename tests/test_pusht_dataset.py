@@ -102,7 +102,7 @@ def pusht_dataset(tmp_path_factory):
         workers=1,
         progress=False,
     )
-    assert cfg.expert == "closed-loop" and cfg.max_sim_time_s == 30.0  # gym-pusht's own 300 steps
+    assert cfg.expert.mode == "closed-loop" and cfg.max_sim_time_s == 30.0  # gym-pusht's own 300 steps
     report = generate(cfg)
     assert (report.episodes, report.failures) == (2, 0), report
     return home, root, report
@@ -215,7 +215,7 @@ def test_its_replay_list_rebuilds_it_value_for_value(pusht_dataset):
 
     home, root, report = pusht_dataset
     copy, cfg = _replayed(pusht_dataset, "gcs_pusht_replayed")
-    assert cfg.expert == "replay"
+    assert cfg.expert.mode == "replay"
     assert generate(cfg).frames == report.frames
     for a, b in zip(_episodes(root), _episodes(copy), strict=True):
         for key in a:

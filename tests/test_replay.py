@@ -28,7 +28,7 @@ def box_dataset(tmp_path_factory):
     home = tmp_path_factory.mktemp("replay")
     cfg = GenerateConfig(episodes=2, repo_id="local/replay_src", root=str(home / "src"), workers=1, progress=False)
     generate(cfg)
-    return home, Path(cfg.root)
+    return home, Path(cfg.output.root)
 
 
 def test_replay_list_holds_each_episodes_start_and_its_stored_actions(box_dataset):
@@ -57,10 +57,10 @@ def test_replaying_the_list_rebuilds_the_same_dataset(box_dataset):
         workers=1,
         progress=False,
     )
-    assert cfg.expert == "replay" and cfg.episodes == 2  # the list's own default
+    assert cfg.expert.mode == "replay" and cfg.episodes == 2  # the list's own default
     report = generate(cfg)
     assert (report.episodes, report.failures) == (2, 0)
-    copy, source = _columns(Path(cfg.root)), _columns(root)
+    copy, source = _columns(Path(cfg.output.root)), _columns(root)
     assert copy.keys() == source.keys()
     for key in copy:
         if key.startswith("observation.") and "image" not in key:
@@ -68,7 +68,7 @@ def test_replaying_the_list_rebuilds_the_same_dataset(box_dataset):
             np.testing.assert_allclose(copy[key], source[key], rtol=0, atol=1e-5, err_msg=key)
         else:  # actions, indices and the images' bytes: equal
             assert np.array_equal(copy[key], source[key]), key
-    assert (Path(cfg.root) / REPLAY_META).read_text() == (root / REPLAY_META).read_text()
+    assert (Path(cfg.output.root) / REPLAY_META).read_text() == (root / REPLAY_META).read_text()
 
 
 def test_a_replay_that_does_not_repeat_its_episode_fails_and_is_reported(box_dataset, tmp_path):
@@ -97,7 +97,7 @@ def test_replay_settings_are_checked_before_any_run(tmp_path):
         GenerateConfig(expert="replay")
     with pytest.raises(ValueError, match='initial condition 0 has no "actions"'):
         GenerateConfig(expert="replay", initial_conditions=str(plain))
-    assert GenerateConfig(initial_conditions=str(plain)).expert == "open-loop"
+    assert GenerateConfig(initial_conditions=str(plain)).expert.mode == "open-loop"
     acted = tmp_path / "acted.json"
     acted.write_text(json.dumps([{"box": [2.0, 1.0], "finger": [-2.0, 0.5], "actions": [[0.0, 0.0]]}]))
     with pytest.raises(ValueError, match="drop --disturbances"):

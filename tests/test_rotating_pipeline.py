@@ -95,7 +95,7 @@ def test_regret_refuses_a_rotating_env_by_name_and_the_experts_do_not(env_id):
     for policy in ("gcs-open-loop", "gcs-closed-loop"):  # the experts plan through contact (test_contact_expert.py)
         assert EvaluateConfig(env_id=env_id, policies=[policy]).regret is False
     # Demonstrations of a rotating slider default to the closed-loop expert and plan with the relaxation only.
-    assert GenerateConfig(env_id=env_id).expert == "closed-loop" and GenerateConfig().expert == "open-loop"
+    assert GenerateConfig(env_id=env_id).expert.mode == "closed-loop" and GenerateConfig().expert.mode == "open-loop"
     with pytest.raises(ValueError, match="relaxation only"):
         GenerateConfig(env_id=env_id, method="micp")
 

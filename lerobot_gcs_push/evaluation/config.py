@@ -6,8 +6,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from lerobot_gcs_push.registration import ENV_ID, SCENES, sample_starts
-from lerobot_gcs_push.scene import check_sampler, check_seed, load_initial_conditions
+from lerobot_gcs_push.planning.factory import ExpertConfig
+from lerobot_gcs_push.registration import SCENES, sample_starts
+from lerobot_gcs_push.scene import load_initial_conditions
+from lerobot_gcs_push.scene.options import StartsConfig
+from lerobot_gcs_push.settings import flat_options
 from lerobot_gcs_push.workers import FanOut
 
 GCS_POLICIES = ("gcs-open-loop", "gcs-closed-loop")
@@ -39,26 +42,20 @@ def check_device(device: str) -> str:
     return device
 
 
+@flat_options
 @dataclass
 class EvaluateConfig(FanOut):
-    # The registered env: GcsPushBox-v0 (the box that cannot turn), GcsPushBoxSE2-v0 or GcsPushT-v0
-    # (rotating sliders, which succeed by coverage; their GCS experts plan through contact; no regret yet).
-    env_id: str = ENV_ID
     # gcs-open-loop, gcs-closed-loop, or LeRobot pretrained_model directories:
     # --policies='[gcs-open-loop,policies/diffusion_cpu]'.
     policies: list[str] = field(default_factory=lambda: ["gcs-open-loop"])
-    # A JSON list of {"box": [x, y], "finger": [x, y]} (and "heading" for a rotating slider); default:
-    # sampled from the env's scene with `sampler` and `seed`.
-    initial_conditions: str | None = None
-    # How many initial conditions to sample (without initial_conditions).
+    # Where the runs start: --env_id, --sampler, --seed, --disturbances, --initial_conditions (`--starts.seed`
+    # works too); without a list, `num_initial_conditions` are sampled from the env's scene.
+    starts: StartsConfig = field(default_factory=StartsConfig)
+    # The GCS experts' settings (--method, --expert.replan_tolerance, --expert.commands=steer ...); the
+    # policies name their mode (gcs-open-loop, gcs-closed-loop).
+    expert: ExpertConfig = field(default_factory=ExpertConfig)
+    # How many initial conditions to sample (without --initial_conditions).
     num_initial_conditions: int = 20
-    # Seeds the initial conditions and every run's env (disturbances, diffusion noise); default: the named
-    # set of the sampler, 1000 (the paper's protocol set, uniform) or 3000 (the hard set).
-    seed: int | None = None
-    # The paper samples its evaluation set from the training distribution (uniform); `hard` is the
-    # named set of configurations a cloned policy gets wrong (scene/starts.py), with its own seed; `hard_v2` adds
-    # fingers far from the box (opposite corners among them).
-    sampler: str = "uniform"
     # Regret of each executed chunk against the GCS cost-to-go (planning.factory.chunk_regret); a chunk above
     # `large_regret_m` is a mistake (the GCS experts stay under 0.5 m per chunk, tracking lag included,
     # unless a disturbance strikes). Default: on where the env has a GCS expert (the box).
@@ -67,8 +64,6 @@ class EvaluateConfig(FanOut):
     large_regret_m: float = 0.5
     # Runs per initial condition.
     runs: int = 5
-    # Also run every closed-loop or learned policy under the paper's random pushes.
-    disturbances: bool = False
     # Where runs.jsonl, tables.md, summary.json, figures and videos go; a re-run continues there, unless
     # a learned policy's weights changed since (then it stops and asks for --overwrite).
     output_dir: str = "outputs/eval"
@@ -92,28 +87,27 @@ class EvaluateConfig(FanOut):
 
     def __post_init__(self) -> None:
         from lerobot_gcs_push.planning.factory import check_cost_to_go
-        from lerobot_gcs_push.rollout import check_env_id
 
-        check_env_id(self.env_id)
+        env_id = self.starts.env_id
         if not self.policies:
             raise ValueError("give at least one policy")
         if self.runs < 1 or self.num_initial_conditions < 1:
             raise ValueError("runs and num_initial_conditions must be >= 1")
         self.check_fan_out()
         if self.timeout_s is None:
-            self.timeout_s = SCENES[self.env_id].timeout_s
+            self.timeout_s = SCENES[env_id].timeout_s
         if not 0 < self.timeout_s < float("inf"):
             raise ValueError(f"timeout_s must be positive and finite, got {self.timeout_s}")
         for p in self.policies:
             check_policy(p)
+        if self.expert.mode is not None:
+            raise ValueError(f"--expert={self.expert.mode}: name the experts in --policies ({', '.join(GCS_POLICIES)})")
+        self.expert.check_env(env_id)
         if self.regret is None:
-            self.regret = SCENES[self.env_id].kind.cost_to_go
+            self.regret = SCENES[env_id].kind.cost_to_go
         elif self.regret:
-            check_cost_to_go(self.env_id, "regret is scored against it: leave --regret unset or false")
-        check_sampler(self.sampler)
-        if self.seed is None:
-            self.seed = NAMED_SET_SEEDS[self.sampler]
-        check_seed(self.seed)
+            check_cost_to_go(env_id, "regret is scored against it: leave --regret unset or false")
+        self.starts.fill(sampler="uniform", seed=NAMED_SET_SEEDS.get)
         check_device(self.device)
         if self.dataset is not None:  # read for Fig. 4 only at the end: a typo must not cost the evaluation
             from lerobot_gcs_push.generate import lerobot_home
@@ -128,7 +122,7 @@ def variants(cfg: EvaluateConfig) -> list[tuple[str, bool]]:
     out = []
     for p in cfg.policies:
         out.append((p, False))
-        if cfg.disturbances and p != "gcs-open-loop":
+        if cfg.starts.disturbances and p != "gcs-open-loop":
             out.append((p, True))
     return out
 
@@ -145,10 +139,14 @@ def _learned_name(path: str) -> str:
 
 
 def initial_conditions(cfg: EvaluateConfig) -> list[dict]:
-    scene = SCENES[cfg.env_id]
-    if cfg.initial_conditions:
-        ics = load_initial_conditions(cfg.initial_conditions, scene)
+    starts = cfg.starts
+    scene = SCENES[starts.env_id]
+    if starts.initial_conditions:
+        ics = load_initial_conditions(starts.initial_conditions, scene)
         for i, ic in enumerate(ics):
             scene.validate_start(ic, f"initial condition {i}")
         return ics
-    return [ic.to_json() for ic in sample_starts(scene, cfg.num_initial_conditions, seed=cfg.seed, sampler=cfg.sampler)]
+    return [
+        ic.to_json()
+        for ic in sample_starts(scene, cfg.num_initial_conditions, seed=starts.seed, sampler=starts.sampler)
+    ]

@@ -47,7 +47,7 @@ def fig6_success_map(cfg, out: Path, records: list[dict], ics: list[dict]) -> Pa
     if not labels:
         return None
     plt = _plt()
-    scene = SCENES[cfg.env_id]
+    scene = SCENES[cfg.starts.env_id]
     measure = success_measures(cfg)
     fig, axes = plt.subplots(1, len(labels), figsize=(4 * len(labels), 4), squeeze=False)
     lim = scene.box_limit
@@ -83,7 +83,7 @@ def fig7_trajectories(cfg, out: Path, records: list[dict], ics: list[dict], max_
     plt = _plt()
     from matplotlib.collections import LineCollection
 
-    scene = SCENES[cfg.env_id]
+    scene = SCENES[cfg.starts.env_id]
     n = min(max_ics, len(ics))
     fig, axes = plt.subplots(1, n, figsize=(3.2 * n, 3.4), squeeze=False)
     cmaps = ["Greys", "Blues", "Oranges", "Purples", "Reds", "Greens"]

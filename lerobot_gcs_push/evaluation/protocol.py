@@ -19,13 +19,15 @@ def evaluate(cfg: EvaluateConfig) -> dict:
     ics = initial_conditions(cfg)
     settings = {
         "initial_conditions": ics,
-        "seed": cfg.seed,
+        "seed": cfg.starts.seed,
         "runs": cfg.runs,
         "timeout_s": cfg.timeout_s,
         "success_thresholds": list(cfg.success_thresholds),
         "regret": cfg.regret,
         "large_regret_m": cfg.large_regret_m,
-        "env_id": cfg.env_id,
+        "env_id": cfg.starts.env_id,
+        # The experts' settings where set (issue 66 made them reachable): a folder made without reads as before.
+        **cfg.expert.non_defaults(always=("mode",)),
     }
     runs_path = out / "runs.jsonl"
     if cfg.overwrite and out.exists():

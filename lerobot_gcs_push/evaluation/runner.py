@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import asdict
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +42,7 @@ class _Runner:
         # read the state from info) and image policies' with pixels.
         self.envs = _Lazy(
             lambda key: make_env(
-                cfg.env_id,
+                cfg.starts.env_id,
                 disturbances=key[0],
                 obs_type=key[1],
                 max_sim_time_s=cfg.timeout_s,
@@ -76,10 +76,10 @@ class _Runner:
 
     def expert(self, name: str):
         if name not in self._experts:
-            from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
+            from lerobot_gcs_push.planning.factory import make_expert
 
             env = self.envs[False, PIXELS_OBS]
-            config = ExpertConfig(mode=name.removeprefix("gcs-"))
+            config = replace(self.cfg.expert, mode=name.removeprefix("gcs-"))  # the policy names the mode
             expert = make_expert(env.scene, env.fps, config, self._experts.get("_planner"))
             self._experts["_planner"] = expert.planner  # one planner for both experts
             self._experts[name] = expert
@@ -91,7 +91,9 @@ class _Runner:
             from lerobot_gcs_push.shipped import shipped_path
 
             # The env's task is its scene's: no env of the policy's obs_type need be made for it.
-            self._learned[path] = LearnedPolicy(shipped_path(path), self.cfg.device, SCENES[self.cfg.env_id].task)
+            self._learned[path] = LearnedPolicy(
+                shipped_path(path), self.cfg.device, SCENES[self.cfg.starts.env_id].task
+            )
         return self._learned[path]
 
     def run(self, job: dict) -> dict:
@@ -100,7 +102,7 @@ class _Runner:
         env = self.envs[dist, getattr(actor, "obs_type", PIXELS_OBS)]
         if policy not in GCS_POLICIES:
             actor.check_env(env)
-        seed = episode_seed(self.cfg.seed, (i * self.cfg.runs + r) * 2 + int(dist))
+        seed = episode_seed(self.cfg.starts.seed, (i * self.cfg.runs + r) * 2 + int(dist))
         frames = [] if job["video"] else None
         traj = Trajectory(env.scene.kind.trajectory_keys)
 
@@ -173,8 +175,7 @@ class _Runner:
 _RUNNER: dict = {}
 
 
-def _init_worker(cfg_dict: dict, out: str) -> None:
-    cfg = EvaluateConfig(**cfg_dict)
+def _init_worker(cfg: EvaluateConfig, out: str) -> None:
     if cfg.workers > 1 or cfg.backend != "process":  # a pool's worker: one process per core
         try:
             import torch
@@ -214,7 +215,7 @@ def _run_all(cfg: EvaluateConfig, out: Path, jobs: list[dict], runs_path: Path) 
             cfg.backend,
             cfg.workers,
             _init_worker,
-            (asdict(cfg), str(out)),
+            (cfg, str(out)),
             address=cfg.ray_address,
             hint=f"the finished runs are kept in {runs_path}: run the same command again to go on",
         ) as pool:

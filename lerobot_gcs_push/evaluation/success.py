@@ -23,5 +23,5 @@ class SuccessMeasures:
 def success_measures(cfg) -> SuccessMeasures:
     """The box: the paper's radius and a looser one. A rotating slider: coverage of the goal outline,
     and beside it the mean final coverage (how close the failures came)."""
-    scene = SCENES[cfg.env_id]
+    scene = SCENES[cfg.starts.env_id]
     return SuccessMeasures(*scene.kind.success_measures(scene, cfg.success_thresholds))

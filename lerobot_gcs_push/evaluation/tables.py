@@ -97,7 +97,7 @@ def _fmt(x, digits=2) -> str:
 
 
 def _paper_ref(cfg: EvaluateConfig, v: dict) -> dict | None:
-    if cfg.env_id != ENV_ID:  # the paper's numbers are the box's that cannot turn
+    if cfg.starts.env_id != ENV_ID:  # the paper's numbers are the box's that cannot turn
         return None
     kind = "gcs" if v["policy"] == "gcs-open-loop" else ("learned" if v["policy"] not in GCS_POLICIES else None)
     return PAPER.get((kind, v["disturbances"])) if kind else None
@@ -106,7 +106,7 @@ def _paper_ref(cfg: EvaluateConfig, v: dict) -> dict | None:
 def _tables_md(cfg: EvaluateConfig, pv: dict, ics: list[dict]) -> str:
     m = success_measures(cfg)
     s2 = m.loose_key
-    on = "" if cfg.env_id == ENV_ID else f" on {cfg.env_id}"  # the box's tables read as they always have
+    on = "" if cfg.starts.env_id == ENV_ID else f" on {cfg.starts.env_id}"  # the box's tables read as they always have
     lines = [
         f"# Evaluation{on}: {len(ics)} initial conditions x {cfg.runs} runs, timeout {cfg.timeout_s:g} s\n",
         f"## Table I: {m.title} and mean success simulation time\n",

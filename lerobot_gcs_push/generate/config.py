@@ -4,59 +4,72 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from lerobot_gcs_push.generate.hub import check_online
 from lerobot_gcs_push.generate.replay import ReplayActions
+from lerobot_gcs_push.planning.factory import EXPERT_DEFAULTS, REPLAY, ExpertConfig
 from lerobot_gcs_push.registration import ENV_ID, SCENES
-from lerobot_gcs_push.scene import (
-    Disturbances,
-    Scene,
-    check_sampler,
-    check_seed,
-    load_initial_conditions,
-)
+from lerobot_gcs_push.scene import Disturbances, Scene, load_initial_conditions
+from lerobot_gcs_push.scene.options import StartsConfig
+from lerobot_gcs_push.settings import Shared, flat_options, flat_settings
 from lerobot_gcs_push.workers import FanOut
 
 EPISODES_META = "meta/gcs_push_episodes.jsonl"
 SETTINGS_META = "meta/gcs_push_settings.json"  # the settings a finished dataset was made with (see _finished)
-# Settings a dataset or work folder made before the field existed holds implicitly.
-_IMPLICIT_SETTINGS = {"env_id": ENV_ID}
+# Settings a dataset or work folder made before the field existed holds implicitly (the expert's beyond its
+# mode and method: recorded only where set, `recorded_settings`).
+_IMPLICIT_SETTINGS = {"env_id": ENV_ID, **EXPERT_DEFAULTS}
 
 
 @dataclass
+class OutputConfig(Shared):
+    """The dataset a command writes: the one definition of `repo_id`, `root`, `overwrite` and `resume`, nested
+    as `output` in `generate` and `collect` (their flat names work too: `--repo_id`, `--output.repo_id`)."""
+
+    # LeRobot dataset id, "owner/name". Default: the command's (local/gcs_push_box for generate,
+    # local/gcs_push_active for collect).
+    repo_id: str | None = None
+    # Dataset folder; default: $HF_LEROBOT_HOME/<repo_id>, where LeRobot looks first.
+    root: str | None = None
+    # Replace an existing dataset (and an interrupted run's work).
+    overwrite: bool = False
+    # Continue an interrupted run, keeping its finished episodes (and shards, and labelled states).
+    resume: bool = False
+
+    def __post_init__(self) -> None:
+        if self.overwrite and self.resume:
+            raise ValueError("choose one of overwrite and resume, not both")
+        if self.repo_id is not None and "/" not in self.repo_id:
+            raise ValueError(f"repo_id must look like 'owner/name', got {self.repo_id!r}")
+
+    def fill(self, repo_id: str) -> None:
+        """The command's default id where none was given."""
+        self.repo_id = self.repo_id or repo_id
+
+    def path(self) -> Path:
+        """The dataset's folder."""
+        return Path(self.root).expanduser() if self.root else lerobot_home() / self.repo_id
+
+
+@flat_options
+@dataclass
 class GenerateConfig(FanOut):
-    # The registered env to record in: GcsPushBox-v0 (the box that cannot turn), GcsPushBoxSE2-v0 or
-    # GcsPushT-v0 (rotating sliders, whose GCS expert plans through contact: --method=relaxation only), or
-    # gym_pusht/PushT-v0 (gym-pusht's own env, written in lerobot/pusht's format: see pusht/dataset.py).
-    env_id: str = ENV_ID
+    # Where the episodes start: --env_id, --sampler, --seed, --disturbances, --initial_conditions
+    # (`--starts.seed` works too): an --initial_conditions list's entries are tried once each, in order,
+    # until `episodes` succeed, and failures are left out.
+    starts: StartsConfig = field(default_factory=StartsConfig)
+    # The GCS expert that acts: --expert (its mode), --method, and its replanning settings
+    # (--expert.replan_tolerance, --expert.commands=steer for gym-pusht ...).
+    expert: ExpertConfig = field(default_factory=ExpertConfig)
+    # The dataset written: --repo_id, --root, --overwrite, --resume.
+    output: OutputConfig = field(default_factory=OutputConfig)
     # Successful demonstrations to write (failed rollouts are left out). Default: 100 from the sampler,
     # or as many as --initial_conditions has entries.
     episodes: int | None = None
-    # LeRobot dataset id, "owner/name".
-    repo_id: str = "local/gcs_push_box"
-    # Dataset folder; default: $HF_LEROBOT_HOME/<repo_id>, where LeRobot looks first.
-    root: str | None = None
-    # The i-th initial condition and episode depend only on (seed, i).
-    seed: int = 0
-    # open-loop (plan once, the paper's), closed-loop (replans after disturbances) or replay (runs the
-    # "actions" of each --initial_conditions entry: a dataset's meta/gcs_push_replay.json rebuilds it, see
-    # replay.py). Default: replay for a list whose entries all carry actions; else open-loop for the box
-    # that cannot turn, closed-loop for a rotating slider, which strays from any plan pushed open-loop.
-    expert: str | None = None
-    # relaxation (convex relaxation + rounding) or micp (exact, SCIP).
-    method: str = "relaxation"
-    # Initial conditions: sobol (space-filling), uniform (the paper's) or hard (see scene/starts.py).
-    sampler: str = "sobol"
-    # A JSON list of {"box", "finger"} (and "heading" for a rotating slider) to use instead of the sampler
-    # (e.g. the policy states that `gcs-push collect` picked); its entries are tried once each, in order,
-    # until `episodes` succeed, and failures are left out.
-    initial_conditions: str | None = None
     # Stop once this many frames are written (an equal-cost control); episodes is then an upper bound.
     frames: int | None = None
-    # Record under the paper's random pushes on the box (use with the closed-loop expert).
-    disturbances: bool = False
     # Env steps (frames) per simulated second.
     fps: int = Scene.fps
     # Observation image side, pixels.
@@ -72,10 +85,6 @@ class GenerateConfig(FanOut):
     # Simulated seconds before a rollout counts as failed. Default: the env's (500 s, the paper's; 30 s, that
     # is 300 steps, for gym-pusht, so its episodes succeed within gym-pusht's own limit).
     max_sim_time_s: float | None = None
-    # Replace an existing dataset (and an interrupted run's work).
-    overwrite: bool = False
-    # Continue an interrupted run, keeping its finished episodes and shards.
-    resume: bool = False
     # Upload with LeRobot's push_to_hub (needs the network and a token).
     push_to_hub: bool = False
     # Show a progress bar.
@@ -86,28 +95,21 @@ class GenerateConfig(FanOut):
     shard_size: int = 10
 
     def __post_init__(self) -> None:
-        from lerobot_gcs_push.planning.factory import EXPERTS
-        from lerobot_gcs_push.rollout import check_env_id
-
-        check_env_id(self.env_id)
-        scene = SCENES[self.env_id]
-        ics = load_initial_conditions(self.initial_conditions, scene) if self.initial_conditions else None
+        starts, expert, env_id = self.starts, self.expert, self.starts.env_id
+        starts.fill(sampler="sobol", seed=0)
+        self.output.fill("local/gcs_push_box")
+        scene = SCENES[env_id]
+        ics = load_initial_conditions(starts.initial_conditions, scene) if starts.initial_conditions else None
         if self.episodes is None:
             self.episodes = len(ics) if ics else 100
         if self.episodes < 1:
             raise ValueError(f"episodes must be >= 1, got {self.episodes}")
         self.check_fan_out()
-        if self.overwrite and self.resume:
-            raise ValueError("choose one of overwrite and resume, not both")
-        if "/" not in self.repo_id:
-            raise ValueError(f"repo_id must look like 'owner/name', got {self.repo_id!r}")
-        kind = SCENES[self.env_id].kind
+        kind = scene.kind
         replayable = bool(ics) and all("actions" in ic for ic in ics)
-        if self.expert is None:
-            self.expert = "replay" if replayable else kind.default_expert
-        if self.expert not in (*EXPERTS, "replay"):
-            raise ValueError(f"unknown expert {self.expert!r}: choose one of {(*EXPERTS, 'replay')}")
-        if self.expert == "replay":
+        if expert.mode is None:
+            expert.mode = REPLAY if replayable else kind.default_expert
+        if expert.mode == REPLAY:
             if not ics:
                 raise ValueError("--expert=replay runs the actions of an --initial_conditions list: pass one")
             missing = next((i for i, ic in enumerate(ics) if "actions" not in ic), None)
@@ -118,19 +120,14 @@ class GenerateConfig(FanOut):
                     ReplayActions().load(ic["actions"])
                 except (ValueError, TypeError) as err:
                     raise ValueError(f"--expert=replay: initial condition {i}: {err}") from None
-            if self.disturbances:
+            if starts.disturbances:
                 raise ValueError("--expert=replay repeats undisturbed episodes: drop --disturbances")
             if self.command_noise_px:
                 raise ValueError("--expert=replay repeats each entry's own command noise: drop --command_noise_px")
             for i, ic in enumerate(ics):
                 if "command_noise" in ic and "labels" not in ic:
                     raise ValueError(f'--expert=replay: initial condition {i} has "command_noise" but no "labels"')
-        check_sampler(self.sampler)
-        from lerobot_gcs_push.planner import check_method
-
-        check_method(self.method)
-        if self.method not in kind.methods:
-            raise ValueError(f"{self.env_id} plans with the relaxation only: drop --method={self.method}")
+        expert.check_env(env_id)
         if self.max_sim_time_s is None:
             self.max_sim_time_s = scene.timeout_s
         if self.image_size < 1:
@@ -142,12 +139,11 @@ class GenerateConfig(FanOut):
             if not (math.isfinite(self.command_noise_px) and self.command_noise_px >= 0):
                 raise ValueError(f"command_noise_px must be a finite std >= 0 px, got {self.command_noise_px}")
         elif self.command_noise_px:
-            raise ValueError(f"command_noise_px is gym-pusht's (its targets are px); {self.env_id} takes none")
+            raise ValueError(f"command_noise_px is gym-pusht's (its targets are px); {env_id} takes none")
         elif self.obs_type != "pixels_agent_pos":
-            raise ValueError(f"{self.env_id} writes obs_type pixels_agent_pos only, got {self.obs_type!r}")
+            raise ValueError(f"{env_id} writes obs_type pixels_agent_pos only, got {self.obs_type!r}")
         if not 0 < self.max_sim_time_s < float("inf"):  # inf would roll a failing start out forever
             raise ValueError(f"max_sim_time_s must be positive and finite, got {self.max_sim_time_s}")
-        check_seed(self.seed)
         per_s = round(1 / Disturbances.tick_s)
         if self.fps <= 0 or per_s % self.fps:  # an env step is a whole number of disturbance ticks
             raise ValueError(f"fps must divide {per_s}, got {self.fps}")
@@ -162,6 +158,28 @@ class GenerateConfig(FanOut):
             check_online()
 
 
+def recorded_settings(cfg: GenerateConfig) -> dict:
+    """What a dataset and its work folder record it was made with (its settings under their flat names,
+    `settings.flat_settings`); where and how the jobs run may change on --resume, what they compute may not.
+    The expert's settings beyond its mode and method only where set: a dataset made without them records
+    what it always did (`_IMPLICIT_SETTINGS` holds their defaults for the comparison)."""
+    skip = (
+        *(f.name for f in fields(ExpertConfig)),
+        "workers",
+        "overwrite",
+        "resume",
+        "progress",
+        "push_to_hub",
+        "episodes",
+        "root",
+        "backend",
+        "ray_address",
+        "shard_size",
+    )
+    flat = flat_settings(cfg)
+    return {k: v for k, v in flat.items() if k not in skip} | {"method": cfg.expert.method} | cfg.expert.non_defaults()
+
+
 def lerobot_home() -> Path:
     env = os.environ.get("HF_LEROBOT_HOME")
     if env:
@@ -172,4 +190,4 @@ def lerobot_home() -> Path:
 
 
 def dataset_root(cfg: GenerateConfig) -> Path:
-    return Path(cfg.root).expanduser() if cfg.root else lerobot_home() / cfg.repo_id
+    return cfg.output.path()

@@ -130,12 +130,12 @@ class _Writer:
     def __init__(self, cfg: GenerateConfig, root: Path):
         from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-        scene = SCENES[cfg.env_id]
+        scene = SCENES[cfg.starts.env_id]
         pusht = scene.kind.lerobot_pusht_data  # lerobot/pusht's features, its image as video
         self.task = scene.task
         self.keys = pusht_feature_keys(cfg.obs_type) if pusht else FEATURE_KEYS
         self.ds = LeRobotDataset.create(
-            repo_id=cfg.repo_id,
+            repo_id=cfg.output.repo_id,
             fps=cfg.fps,
             features=pusht_features(cfg.image_size, cfg.obs_type) if pusht else features(scene, cfg.image_size),
             root=root,

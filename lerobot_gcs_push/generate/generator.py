@@ -7,7 +7,7 @@ import json
 import os
 import shutil
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +19,7 @@ from lerobot_gcs_push.generate.config import (
     GenerateConfig,
     dataset_root,
     lerobot_home,
+    recorded_settings,
 )
 from lerobot_gcs_push.generate.frames import (
     _batched_image_embedding,
@@ -60,11 +61,11 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
 
     from lerobot_gcs_push.workers import open_pool
 
-    scene = SCENES[cfg.env_id]
+    scene = SCENES[cfg.starts.env_id]
     root = dataset_root(cfg)
     work = WorkDir(root.with_name(root.name + ".work"))
     shards = root.with_name(root.name + ".shards")
-    if cfg.overwrite:
+    if cfg.output.overwrite:
         if root.exists() and not (root / "meta" / "info.json").is_file() and any(root.iterdir()):
             raise FileExistsError(
                 f"--overwrite replaces a LeRobotDataset, and {root} is not one: choose another --root"
@@ -72,40 +73,28 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
         for path in (root, work.path, shards):
             shutil.rmtree(path, ignore_errors=True)
     # Where and how the jobs run may change on --resume; what they compute may not.
-    settings = {
-        k: v
-        for k, v in asdict(cfg).items()
-        if k
-        not in (
-            "workers",
-            "overwrite",
-            "resume",
-            "progress",
-            "push_to_hub",
-            "episodes",
-            "root",
-            "backend",
-            "ray_address",
-            "shard_size",
-        )
-    }
+    settings = recorded_settings(cfg)
     if root.exists():
         return _finished(cfg, root, settings)
     if not work.path.exists():  # shards are only trusted with the settings they were made with
         shutil.rmtree(shards, ignore_errors=True)
-    work.open(settings, cfg.resume)
+    work.open(settings, cfg.output.resume)
     shards.mkdir(parents=True, exist_ok=True)
     for stale in shards.glob(".shard_*"):  # staging folders of jobs cut short with an interrupted run
         shutil.rmtree(stale, ignore_errors=True)
 
     t0 = time.perf_counter()
-    if cfg.initial_conditions:
+    if cfg.starts.initial_conditions:
         # A file's other keys (a branch state's source) stay out of the jobs.
         keys = (*START_KEYS, *REPLAY_KEYS)
-        ics = [{k: ic[k] for k in keys if k in ic} for ic in load_initial_conditions(cfg.initial_conditions, scene)]
+        ics = [
+            {k: ic[k] for k in keys if k in ic} for ic in load_initial_conditions(cfg.starts.initial_conditions, scene)
+        ]
     else:
         max_attempts = int(np.ceil(cfg.episodes * cfg.max_attempts_factor)) + 10
-        ics = [ic.to_json() for ic in sample_starts(scene, max_attempts, seed=cfg.seed, sampler=cfg.sampler)]
+        ics = [
+            ic.to_json() for ic in sample_starts(scene, max_attempts, seed=cfg.starts.seed, sampler=cfg.starts.sampler)
+        ]
     finished = {s["start"]: s for s in map(_read_shard, shards.glob("shard_*")) if s is not None}
     bar = _progress(cfg)
     failures = 0
@@ -122,7 +111,7 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
             cfg.backend,
             cfg.workers,
             _init_worker,
-            (asdict(cfg), str(work.path), str(shards)),
+            (cfg, str(work.path), str(shards)),
             address=cfg.ray_address,
             hint=f"the finished shards are kept in {shards}: run again with --resume=true",
         ) as pool:
@@ -134,7 +123,7 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
     attempts = kept[-1]["stop"] if kept else 0
     enough = len(metas) == cfg.episodes or (cfg.frames is not None and frames >= cfg.frames)
     # A given list is tried once and its failures are reported, not an error.
-    if not enough and not (cfg.initial_conditions and metas):
+    if not enough and not (cfg.starts.initial_conditions and metas):
         raise RuntimeError(
             f"only {len(metas)} of {cfg.episodes} episodes succeeded after {attempts} initial "
             f"conditions; their records are in {shards}"
@@ -148,7 +137,7 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
     wall = time.perf_counter() - t0
     report = GenerateReport(
         str(root),
-        cfg.repo_id,
+        cfg.output.repo_id,
         len(metas),
         frames,
         attempts,
@@ -159,7 +148,7 @@ def generate(cfg: GenerateConfig) -> GenerateReport:
         merge_time,
     )
     if cfg.push_to_hub:
-        push_to_hub(cfg.repo_id, root)
+        push_to_hub(cfg.output.repo_id, root)
     return report
 
 
@@ -170,19 +159,19 @@ def _finished(cfg: GenerateConfig, root: Path, settings: dict) -> GenerateReport
     re-runs every step after a kill can pass --resume=true to a step that already finished.
     """
     hint = "pass --overwrite=true to replace it (or choose another --repo_id / --root)"
-    if not cfg.resume:
+    if not cfg.output.resume:
         raise FileExistsError(f"a dataset already exists at {root}: {hint}")
     wanted = settings | {"episodes": cfg.episodes}
     file = root / SETTINGS_META
     if not file.exists():
         raise FileExistsError(f"a dataset already exists at {root}, made before its settings were recorded: {hint}")
-    diff = changed(json.loads(file.read_text()), wanted, _IMPLICIT_SETTINGS)
+    diff = changed(json.loads(file.read_text()), _IMPLICIT_SETTINGS | wanted, _IMPLICIT_SETTINGS)
     if diff:
         raise FileExistsError(f"the finished dataset at {root} was made with other settings ({describe(diff)}): {hint}")
     metas = read_episode_metadata(root)
     return GenerateReport(
         str(root),
-        cfg.repo_id,
+        cfg.output.repo_id,
         episodes=len(metas),
         frames=sum(m["num_frames"] for m in metas),
         attempts=0,
@@ -200,7 +189,9 @@ def _merge(cfg: GenerateConfig, root: Path, shard_roots: list[Path], metas: list
     staging = root.with_name(root.name + ".staging")
     shutil.rmtree(staging, ignore_errors=True)
     with _batched_image_embedding():
-        aggregate_datasets([cfg.repo_id] * len(shard_roots), cfg.repo_id, roots=shard_roots, aggr_root=staging)
+        aggregate_datasets(
+            [cfg.output.repo_id] * len(shard_roots), cfg.output.repo_id, roots=shard_roots, aggr_root=staging
+        )
     (staging / EPISODES_META).write_text(
         "".join(json.dumps({"episode_index": i, **meta}) + "\n" for i, meta in enumerate(metas))
     )

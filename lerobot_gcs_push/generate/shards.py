@@ -30,17 +30,16 @@ SHARD_FILE = "gcs_push_shard.json"  # in a shard: its range and the metadata of 
 CRASH_ENV = "GCS_PUSH_TEST_CRASH_DIR"  # tests: a file `episode_<i>` there kills the worker once, before episode i
 
 
-def _init_worker(cfg_dict: dict, work_path: str, shards_path: str) -> None:
+def _init_worker(cfg: GenerateConfig, work_path: str, shards_path: str) -> None:
     import lerobot_gcs_push  # noqa: F401  (registers the env)
-    from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
+    from lerobot_gcs_push.planning.factory import REPLAY, make_expert
     from lerobot_gcs_push.registration import make_env
 
-    cfg = GenerateConfig(**cfg_dict)
     env = make_env(
-        cfg.env_id,
+        cfg.starts.env_id,
         fps=cfg.fps,
         image_size=cfg.image_size,
-        disturbances=cfg.disturbances,
+        disturbances=cfg.starts.disturbances,
         max_sim_time_s=cfg.max_sim_time_s,
         obs_type=cfg.obs_type,
     )
@@ -49,9 +48,7 @@ def _init_worker(cfg_dict: dict, work_path: str, shards_path: str) -> None:
         env=env,
         work=WorkDir(Path(work_path)),
         shards=Path(shards_path),
-        expert=ReplayActions()
-        if cfg.expert == "replay"
-        else make_expert(env.scene, cfg.fps, ExpertConfig(mode=cfg.expert, method=cfg.method)),
+        expert=ReplayActions() if cfg.expert.mode == REPLAY else make_expert(env.scene, cfg.fps, cfg.expert),
     )
 
 
@@ -110,12 +107,12 @@ def _run_episode(job: tuple[int, dict]) -> dict:
     index, ic = job
     env, expert, cfg = _WORKER["env"], _WORKER["expert"], _WORKER["cfg"]
     pusht = env.scene.kind.lerobot_pusht_data  # lerobot/pusht's frames, recorded from the env's own steps
-    seed = episode_seed(cfg.seed, index)
+    seed = episode_seed(cfg.starts.seed, index)
     noise, expected_run = None, None
-    if cfg.expert == "replay" and "command_noise" in ic:  # a DART list: its labels again, its noise again
+    if cfg.expert.mode == "replay" and "command_noise" in ic:  # a DART list: its labels again, its noise again
         noise, expected_run = CommandNoise.of(ic["command_noise"]), ic["actions"]
         expert.load(ic["labels"])
-    elif cfg.expert == "replay":
+    elif cfg.expert.mode == "replay":
         expert.load(ic["actions"])
     elif cfg.command_noise_px > 0:
         noise = CommandNoise(cfg.command_noise_px, seed)

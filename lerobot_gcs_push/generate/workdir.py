@@ -31,7 +31,7 @@ class WorkDir:
                     "or --overwrite=true to start again"
                 )
             old = json.loads(self.settings_file().read_text()) if self.settings_file().exists() else None
-            diff = changed(old, settings, _IMPLICIT_SETTINGS) if old is not None else {}
+            diff = changed(old, _IMPLICIT_SETTINGS | settings, _IMPLICIT_SETTINGS) if old is not None else {}
             if diff:
                 raise ValueError(f"--resume with different settings than the interrupted run: {describe(diff)}")
         self.path.mkdir(parents=True, exist_ok=True)

@@ -18,7 +18,7 @@ policy will meet; its action chunks are what the policy should have done there.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -27,22 +27,24 @@ from lerobot_gcs_push.evaluation import GCS_POLICIES, read_runs
 from lerobot_gcs_push.evaluation.learned import PIXELS_OBS
 from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.generate import GenerateConfig, GenerateReport, dataset_root, generate
+from lerobot_gcs_push.generate.config import OutputConfig
 from lerobot_gcs_push.improve.stalls import StallRule, stall_branch_states
 from lerobot_gcs_push.planner import plannable
 from lerobot_gcs_push.planning.factory import check_cost_to_go
 from lerobot_gcs_push.registration import ENV_ID, SCENES
 from lerobot_gcs_push.scene import Scene
+from lerobot_gcs_push.settings import flat_options
 from lerobot_gcs_push.workers import FanOut
 
 
+@flat_options
 @dataclass
 class CollectConfig(FanOut):
     # `gcs-push evaluate` output folders of the policy to correct, e.g. '[outputs/active/r1/rollouts]'.
     rollouts: list[str] = field(default_factory=list)
-    # The labelled states' LeRobot dataset id.
-    repo_id: str = "local/gcs_push_active"
-    # Dataset folder; default: $HF_LEROBOT_HOME/<repo_id>.
-    root: str | None = None
+    # The labelled states' dataset: --repo_id (default local/gcs_push_active), --root, --overwrite, --resume
+    # (`--output.repo_id` works too).
+    output: OutputConfig = field(default_factory=OutputConfig)
     # Chunk starts above these regrets are branched from: any mistake of a successful run; in a failed
     # run also the slower drift (a wrong-face push costs a few decimetres a chunk). The GCS experts'
     # own chunks stay under 0.5 m, so neither picks noise.
@@ -58,14 +60,12 @@ class CollectConfig(FanOut):
     # A slider that turns has no cost-to-go to take regrets from: its branch states are where coverage
     # stalls or falls, in failed runs and in successes slower than the expert's (stalls.py).
     stall: StallRule = field(default_factory=StallRule)
-    # Seeds the choice of the other chunk starts and the expert's episodes.
+    # Seeds the choice of the other chunk starts and the expert's episodes (collect's own: its starts are
+    # the rollouts' states, not a sampler's).
     seed: int = 0
-    # Replace an existing dataset.
-    overwrite: bool = False
-    # Continue an interrupted collection.
-    resume: bool = False
 
     def __post_init__(self) -> None:
+        self.output.fill("local/gcs_push_active")
         if not self.rollouts:
             raise ValueError("give at least one --rollouts folder (written by `gcs-push evaluate`)")
         for r in self.rollouts:
@@ -177,28 +177,25 @@ def collect(cfg: CollectConfig) -> tuple[GenerateReport, list[dict]]:
     gen = GenerateConfig(
         env_id=env_id,
         episodes=len(states),
-        repo_id=cfg.repo_id,
-        root=cfg.root,
+        output=replace(cfg.output),  # a copy: generate fills in its own
         seed=cfg.seed,
         expert="closed-loop",
         obs_type=rollouts_obs_type(records),
-        overwrite=cfg.overwrite,
-        resume=cfg.resume,
         **cfg.fan_out(),
     )
     root = dataset_root(gen)
     # The list sits beside the dataset (kept for provenance), written whole before generation reads it.
     states_path = root.with_name(root.name + ".branch_states.json")
     text = json.dumps(states)
-    if cfg.resume and states_path.exists():
+    if cfg.output.resume and states_path.exists():
         if states_path.read_text() != text:  # the states are the run's settings: other ones would mix lists
             raise ValueError(
                 f"{states_path} holds the branch states of a collect with other rollouts or settings; "
                 "--resume needs the same ones (or pass --overwrite=true, or choose another --repo_id)"
             )
-    elif cfg.overwrite or not (root.exists() or root.with_name(root.name + ".work").exists()):
+    elif cfg.output.overwrite or not (root.exists() or root.with_name(root.name + ".work").exists()):
         with atomic_path(states_path) as tmp:
             tmp.write_text(text)
     # else generate() refuses the existing dataset or interrupted run, and their list stays as it was.
-    gen.initial_conditions = str(states_path)
+    gen.starts.initial_conditions = str(states_path)
     return generate(gen), states

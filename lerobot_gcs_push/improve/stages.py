@@ -153,7 +153,7 @@ class Collect(Stage):
             resume=True,
         )
         collect(cfg)
-        root = dataset_root(GenerateConfig(repo_id=cfg.repo_id))
+        root = dataset_root(GenerateConfig(repo_id=cfg.output.repo_id))
         self.states_file(k).parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(root.with_name(root.name + ".branch_states.json"), self.states_file(k))
         shutil.copyfile(root / REPLAY_META, self.replay_file(k))

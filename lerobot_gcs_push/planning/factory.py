@@ -5,7 +5,8 @@ box's GCS cost-to-go that scores any policy's chunks (regret).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from typing import ClassVar
 
 import numpy as np
 
@@ -13,8 +14,10 @@ from lerobot_gcs_push.planner import GcsPlanner, plannable
 from lerobot_gcs_push.planning import Planner, PlanningError, Speeds
 from lerobot_gcs_push.planning.expert import PlanExpert
 from lerobot_gcs_push.pusht.agent import COMMANDS
+from lerobot_gcs_push.settings import Shared
 
 EXPERTS = ("open-loop", "closed-loop")
+REPLAY = "replay"  # generate's: no planning, a list's recorded actions run again
 
 
 def check_cost_to_go(env_id: str, needed_by: str = "") -> None:
@@ -39,6 +42,8 @@ def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=N
     and the habits of its slider kind; in pixels, with its agent steered, for gym-pusht.
     `planner` shares one planner between experts (it is costly to build)."""
     config = config or ExpertConfig()
+    if config.mode == REPLAY:
+        raise ValueError("the replay expert runs recorded actions and plans nothing: it is generate's")
     kind = scene.kind
     planner = planner or kind.make_planner(scene, config.method)
     expert = PlanExpert(
@@ -66,13 +71,26 @@ def speeds_for(scene, commands: str = "position") -> Speeds:
 
 
 @dataclass
-class ExpertConfig:
-    mode: str = "open-loop"
+class ExpertConfig(Shared):
+    """The GCS expert's settings: the one definition of them, nested as `expert` in `generate` and `evaluate`
+    (`--expert.commands=steer`); their flat names work too (`--expert=closed-loop`, `--method=micp`)."""
+
+    flat_value: ClassVar[str] = "mode"
+    # open-loop (plan once, the paper's) or closed-loop (replans after disturbances); generate also takes
+    # replay (runs the "actions" of each --initial_conditions entry: a dataset's meta/gcs_push_replay.json
+    # rebuilds it, see generate/replay.py). Default: generate's is replay for a list whose entries all carry
+    # actions, else the slider kind's (open-loop for the box that cannot turn, closed-loop for a rotating
+    # slider, which strays from any plan pushed open-loop); evaluate's policies name theirs (gcs-open-loop);
+    # `make_expert` given none plans open-loop.
+    mode: str | None = None
+    # relaxation (convex relaxation + rounding) or micp (exact, SCIP; the box only).
     method: str = "relaxation"
     # Closed loop: every `replan_every` steps, outside pushes, replan if the box rests more than
     # `replan_tolerance` m from where the plan put it (a disturbance), or when the plan has run out.
     replan_every: int = 5
+    # How far the slider may rest from the plan's pose before a closed-loop expert replans (m; see above).
     replan_tolerance: float = 0.03
+    # Replans at most in an episode (single-push corrections not counted); then the last plan runs out.
     max_replans: int = 50
     # gym-pusht only: what an action is (pusht.agent.PixelActions). "position": the plan's own point
     # `lead_actions` on (None: 3), along a path of bounded acceleration (`rules.PUSHT_POSITION_SPEEDS`); the
@@ -81,6 +99,7 @@ class ExpertConfig:
     # until 2026-12-07 (over 2 rather than 1 its targets jumped a third to a quarter as far). Position
     # commands are what a policy can imitate (experiments/pusht/README.md, "Imitable commands").
     commands: str = "position"
+    # gym-pusht only: how many actions on a command leads (see `commands`); none: the commands' own.
     lead_actions: int | None = None
     # A slider that turns, within this distance of its goal (m + rad x r_max): the closed-loop expert corrects
     # it by single pushes chosen on the linearised model (`contact.fine`), not by plans through the
@@ -88,8 +107,11 @@ class ExpertConfig:
     fine_within: float | None = None
 
     def __post_init__(self) -> None:
-        if self.mode not in EXPERTS:
-            raise ValueError(f"unknown expert {self.mode!r}: choose one of {EXPERTS}")
+        from lerobot_gcs_push.planner import check_method
+
+        if self.mode not in (None, *EXPERTS, REPLAY):
+            raise ValueError(f"unknown expert {self.mode!r}: choose one of {(*EXPERTS, REPLAY)}")
+        check_method(self.method)
         if self.replan_every < 1:
             raise ValueError(f"replan_every must be >= 1, got {self.replan_every}")
         if not self.replan_tolerance > 0:  # also refuses NaN, which would never replan
@@ -100,10 +122,40 @@ class ExpertConfig:
             raise ValueError(f"fine_within must be >= 0 (m + rad x the slider's radius), got {self.fine_within}")
         if self.commands not in COMMANDS:
             raise ValueError(f"unknown commands {self.commands!r}: choose one of {COMMANDS}")
-        if self.lead_actions is None:
-            self.lead_actions = 3 if self.commands == "position" else 2
-        if self.lead_actions < 1:
+        if self.lead_actions is not None and self.lead_actions < 1:
             raise ValueError(f"lead_actions must be >= 1, got {self.lead_actions}")
+
+    def lead(self) -> int:
+        """`lead_actions`, or its default for the commands. Resolved here, never stored: draccus builds a nested
+        config from the class's defaults, so a value filled in for "position" would outlive a later
+        --expert.commands=steer."""
+        if self.lead_actions is not None:
+            return self.lead_actions
+        return 3 if self.commands == "position" else 2
+
+    def check_env(self, env_id: str) -> None:
+        """For a command's validation: what the env's slider kind cannot do is refused before any work."""
+        from lerobot_gcs_push.registration import SCENES
+
+        kind = SCENES[env_id].kind
+        if self.method not in kind.methods:
+            raise ValueError(f"{env_id} plans with the relaxation only: drop --method={self.method}")
+        if (self.commands != "position" or self.lead_actions is not None) and not kind.lerobot_pusht_data:
+            raise ValueError(f"expert.commands and expert.lead_actions are gym-pusht's; {env_id} takes neither")
+
+    def non_defaults(self, always: tuple[str, ...] = ("mode", "method")) -> dict:
+        """The settings that differ from the defaults, by flat name, but those a record `always` holds (its
+        own way): what a record adds, so that one made without them reads as it always did."""
+        default = ExpertConfig()
+        return {
+            f.name: getattr(self, f.name)
+            for f in fields(self)
+            if f.name not in always and getattr(self, f.name) != getattr(default, f.name)
+        }
+
+
+# What a record made before the expert's settings were reachable (or without them) was made with.
+EXPERT_DEFAULTS = {f.name: f.default for f in fields(ExpertConfig) if f.name not in ("mode", "method")}
 
 
 class CostToGo:

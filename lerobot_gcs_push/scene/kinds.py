@@ -276,7 +276,7 @@ class GymPushT(TurningSlider):
     def wrap_expert(self, expert, scene: Scene, config):
         from lerobot_gcs_push.pusht.agent import PixelActions
 
-        return PixelActions(expert, scene.frame, config.commands, config.lead_actions)
+        return PixelActions(expert, scene.frame, config.commands, config.lead())
 
 
 FIXED_BOX, TURNING_SLIDER, GYM_PUSHT = FixedBox(), TurningSlider(), GymPushT()
