@@ -77,3 +77,43 @@ def test_the_shipped_policy_acts_through_lerobots_factory_as_it_is():
     np.testing.assert_array_equal(actions[0], actions[1])
     assert actions[0].shape == (2,) and np.all(np.abs(actions[0]) <= env.scene.finger_limit + 0.5)
     assert policy.chunk_steps == 8
+
+
+KEYPOINTS = SHIPPED.with_name("diffusion_pusht_keypoints")
+
+
+def test_the_shipped_keypoint_policy_runs_in_lerobots_own_pusht_env_as_it_is():
+    """`policies/diffusion_pusht_keypoints`: fp16, no unpack step, and LeRobot's own pusht env with
+    `obs_type="environment_state_agent_pos"` (its make_env and observation mapping, not this package's)
+    feeds it; its actions are agent targets inside gym-pusht's 512 px arena, the same for the same seed."""
+    import torch
+    from lerobot.envs.configs import PushtEnv
+    from lerobot.envs.utils import preprocess_observation
+    from lerobot.policies.diffusion.modeling_diffusion import DiffusionPolicy
+    from lerobot.policies.factory import make_pre_post_processors
+    from safetensors.torch import load_file
+
+    assert is_pretrained_dir(KEYPOINTS)
+    floats = [t for t in load_file(KEYPOINTS / MODEL_FILE).values() if t.is_floating_point()]
+    assert floats and all(str(t.dtype) == "torch.float16" for t in floats)
+    policy = DiffusionPolicy.from_pretrained(KEYPOINTS)
+    assert set(policy.config.input_features) == {"observation.state", "observation.environment_state"}
+    pre, post = make_pre_post_processors(policy.config, pretrained_path=str(KEYPOINTS))
+    import gym_pusht  # noqa: F401  (registers gym_pusht/PushT-v0, as LeRobot's make_env imports it)
+    import gymnasium as gym
+
+    env_cfg = PushtEnv(obs_type="environment_state_agent_pos")
+
+    assert env_cfg.gym_kwargs["obs_type"] == "environment_state_agent_pos"
+    env = gym.make(f"gym_pusht/{env_cfg.task}", **env_cfg.gym_kwargs)
+    obs, _ = env.reset(seed=3)
+    runs = []
+    for _ in range(2):
+        torch.manual_seed(7)
+        policy.reset()
+        batch = pre(preprocess_observation({k: v[None] for k, v in obs.items()}))
+        with torch.inference_mode():
+            runs.append(post(policy.select_action(batch)).numpy().reshape(-1))
+    env.close()
+    np.testing.assert_array_equal(runs[0], runs[1])
+    assert runs[0].shape == (2,) and np.all((runs[0] > -20) & (runs[0] < 532))
