@@ -134,7 +134,9 @@ class GcsPlanner:
             return self._plan_without_push(method, box, finger, goal, t0)
         if method == "micp":
             flows = self.micp.solve(q.src, q.goal, q.allowed)
-            conic = self.conic.at(q.src, q.goal, q.allowed)
+            # SCIP's optimum comes with SCIP's word only: the bound is the relaxation's, checked.
+            relaxed = self._relaxation_or_none(q)
+            conic = self.conic.at(q.src, q.goal, q.allowed) if relaxed is None else relaxed.conic
             paths = candidate_paths(self.graph, flows.flows, None, 1, min_flow=0.5)
         else:
             relaxed = self.conic.relax(q.src, q.goal, q.allowed)
@@ -158,8 +160,10 @@ class GcsPlanner:
             bw = np.vstack([box, bw])
             kinds = [FREE, *kinds]
             modes = ["escape", *modes]
-        # MICP: SCIP proves optimality (within its gap), so its bound is its value.
-        lower = (best.cost if method == "micp" else min(flows.value, best.cost)) + q.extra_cost
+        # The relaxation's certified bound (conic.certificate), the plan's point inside the region it assumes
+        # the optimum in; lowered to the plan's cost where the two meet within the solver's tolerance.
+        bound = None if relaxed is None else relaxed.certificate(best).bound
+        lower = None if bound is None else min(bound, best.cost) + q.extra_cost
         return Plan(
             method=method,
             cost=best.cost + q.extra_cost,
@@ -173,6 +177,12 @@ class GcsPlanner:
             candidates=len(paths),
             extra={"relaxation_time_s": flows.solve_time_s},
         )
+
+    def _relaxation_or_none(self, q: Query):
+        try:
+            return self.conic.relax(q.src, q.goal, q.allowed)
+        except PlanningError:  # no certificate, but SCIP's plan stands
+            return None
 
     def goal_of(self, box) -> np.ndarray:
         return self.scene.goal_array

@@ -24,6 +24,7 @@ class PathSolution:
     points: dict[int, np.ndarray]
     solve_time_s: float
     accurate: bool = True  # False when Clarabel reports OPTIMAL_INACCURATE
+    x: np.ndarray | None = None  # the point in the relaxation's conic variables (conic_gcs.py), where solved there
 
     def rank(self) -> tuple:
         """Order for choosing among candidates: accurate solutions first, then cost."""
