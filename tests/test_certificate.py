@@ -107,11 +107,11 @@ def test_a_near_solution_is_taken_only_with_small_residuals(box_queries):
         assert not near_solution(conic, x, z)
 
 
-@pytest.mark.slow  # about a minute: the T's one-push graph compiled, every path through SCIP
+@pytest.mark.slow  # the T's one-push graph, 45 paths through SCIP
 def test_the_t_bound_is_below_every_paths_global_optimum():
     """gym-pusht's T on a one-push graph (3 knots), near its goal: the plan's bound at or below the least
     of every path's global optimum (SCIP's spatial branch and bound, test_contact_graph_global.py's
-    program), on several starts."""
+    program), on three starts (one with a certified gap of 50 %: a loose bound, still below)."""
     pytest.importorskip("pyscipopt")
     pytest.importorskip("gym_pusht")
     from test_contact_graph_global import scip_restriction
@@ -122,7 +122,10 @@ def test_the_t_bound_is_below_every_paths_global_optimum():
 
     planner = ContactPlanner(SCENES[PUSHT_ENV_ID], layers=1, knots=3)
     gx, gy, gh = planner.model.goal
-    starts = [((gx + 0.3, gy, gh + 0.1), (gx + 2.5, gy - 0.5)), ((gx, gy - 0.3, gh - 0.15), (gx - 0.5, gy - 2.5))]
+    # Starts a single push can solve (most with a turn cannot: 2 steps of at most 0.2 rad, one face).
+    starts = [
+        ((gx + dx, gy + dy, gh), (gx + 20 * dx, gy + 20 * dy)) for dx, dy in ((0.1, 0.1), (-0.1, -0.1), (0.1, -0.1))
+    ]
     checked = 0
     for pose, finger in starts:
         pose, finger = planner.plannable(pose, finger)
@@ -139,5 +142,6 @@ def test_the_t_bound_is_below_every_paths_global_optimum():
             optima.append(best)
         best = min(optima)
         assert np.isfinite(best) and plan.lower_bound <= best + 1e-5 * best, (pose, plan.lower_bound, best)
+        print(f"bound {plan.lower_bound:.6f} <= global optimum {best:.6f} ({len(optima)} paths), plan {plan.cost:.6f}")
         checked += 1
     assert checked == len(starts)
