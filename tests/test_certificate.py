@@ -6,8 +6,6 @@ box's global optimum."""
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 
@@ -114,10 +112,9 @@ def test_the_t_bound_is_below_every_paths_global_optimum():
     program), on three starts (one with a certified gap of 50 %: a loose bound, still below)."""
     pytest.importorskip("pyscipopt")
     pytest.importorskip("gym_pusht")
-    from test_contact_graph_global import scip_restriction
+    from test_contact_graph_global import plan_and_path_optima
 
     from lerobot_gcs_push.contact import ContactPlanner
-    from lerobot_gcs_push.contact.rounding import ranked_paths
     from lerobot_gcs_push.registration import PUSHT_ENV_ID, SCENES
 
     planner = ContactPlanner(SCENES[PUSHT_ENV_ID], layers=1, knots=3)
@@ -128,19 +125,8 @@ def test_the_t_bound_is_below_every_paths_global_optimum():
     ]
     checked = 0
     for pose, finger in starts:
-        pose, finger = planner.plannable(pose, finger)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            plan = planner.plan(pose, finger)
-        assert plan.certified and np.isfinite(plan.lower_bound)
-        p, q, goal, allow = planner.query(pose, finger)
-        res = planner.relaxation.solve(p, q, goal, allow, planner.window(p, goal))
-        optima = []
-        for path in ranked_paths(planner.graph, res, allow):
-            status, best, _ = scip_restriction(planner, path, p, q, goal, 1.5 * plan.cost)
-            assert status in ("optimal", "gaplimit", "infeasible"), (path, status)
-            optima.append(best)
-        best = min(optima)
+        plan, optima = plan_and_path_optima(planner, *planner.plannable(pose, finger))
+        best = min(b for b, _, _ in optima)
         assert np.isfinite(best) and plan.lower_bound <= best + 1e-5 * best, (pose, plan.lower_bound, best)
         print(f"bound {plan.lower_bound:.6f} <= global optimum {best:.6f} ({len(optima)} paths), plan {plan.cost:.6f}")
         checked += 1
