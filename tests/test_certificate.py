@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from lerobot_gcs_push.box_gcs import GcsPlanner, brute_force
+from lerobot_gcs_push.box_gcs.restriction import RestrictionCache
 from lerobot_gcs_push.conic.certificate import CERTIFY_TOL, MARGIN, check_dual, of_solution
 from lerobot_gcs_push.conic.solve import near_solution
-from lerobot_gcs_push.planner import GcsPlanner, brute_force
-from lerobot_gcs_push.planner.restriction import RestrictionCache
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
 BOX = Scene()
@@ -72,7 +72,7 @@ def test_the_assumption_holds_at_the_global_optimum(box, box_queries):
     global optimum's point (the MICP's path, SCIP, restricted in the same program) lies inside R on every
     start, and the term the bound spends on the assumption is small beside the bound. Without the plan's
     point, R = |x*| + MARGIN would not hold it: the relaxation's split flows shrink its copies."""
-    from lerobot_gcs_push.planner.rounding import candidate_paths
+    from lerobot_gcs_push.box_gcs.rounding import candidate_paths
 
     outside_without_plan = 0
     for _, q, relaxed in box_queries:

@@ -10,10 +10,10 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
+from lerobot_gcs_push.box_gcs import GcsPlanner
+from lerobot_gcs_push.box_gcs.restriction import Restriction
 from lerobot_gcs_push.conic import Infeasible, ParametricConic
 from lerobot_gcs_push.conic.certificate import of_solution
-from lerobot_gcs_push.planner import GcsPlanner
-from lerobot_gcs_push.planner.restriction import Restriction
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
 SCENE = Scene()

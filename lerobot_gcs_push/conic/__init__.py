@@ -1,4 +1,4 @@
-"""Conic programs solved by Clarabel, shared by both planners (the box's mode graph, `planner/`, and the
+"""Conic programs solved by Clarabel, shared by both planners (the box's mode graph, `box_gcs/`, and the
 contact graph of a slider that turns, `contact/`): conic data as Clarabel reads it and the same program
 with variables fixed (`program`), taken once from a DPP cvxpy program and evaluated per query
 (`parametric`), kept on disk (`cache`), the cones and residuals (`cones`), Clarabel's call and which of

@@ -19,13 +19,13 @@ from dataclasses import dataclass
 import cvxpy as cp
 import numpy as np
 
+from lerobot_gcs_push.box_gcs import gcs, transcription
+from lerobot_gcs_push.box_gcs.gcs import FlowSolution, GcsProgram, free_coords
+from lerobot_gcs_push.box_gcs.graph import ModeGraph
+from lerobot_gcs_push.box_gcs.restriction import PathSolution
 from lerobot_gcs_push.conic import Conic, Fixing, Infeasible, ParametricConic, cached
 from lerobot_gcs_push.conic.certificate import Certificate, of_solution
 from lerobot_gcs_push.conic.solve import ConicSolution
-from lerobot_gcs_push.planner import gcs, transcription
-from lerobot_gcs_push.planner.gcs import FlowSolution, GcsProgram, free_coords
-from lerobot_gcs_push.planner.graph import ModeGraph
-from lerobot_gcs_push.planner.restriction import PathSolution
 from lerobot_gcs_push.planning.interface import PlanningError
 
 

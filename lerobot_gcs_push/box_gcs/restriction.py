@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import cvxpy as cp
 import numpy as np
 
-from lerobot_gcs_push.planner.graph import ModeGraph
-from lerobot_gcs_push.planner.transcription import edge_constraint, vertex_constraints, vertex_costs
+from lerobot_gcs_push.box_gcs.graph import ModeGraph
+from lerobot_gcs_push.box_gcs.transcription import edge_constraint, vertex_constraints, vertex_costs
 
 
 @dataclass

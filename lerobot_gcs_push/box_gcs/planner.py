@@ -8,12 +8,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lerobot_gcs_push.planner.conic_gcs import ConicGcs
-from lerobot_gcs_push.planner.gcs import GcsProgram
-from lerobot_gcs_push.planner.graph import ModeGraph, SourcePoint, build_graph
-from lerobot_gcs_push.planner.micp import ScipMicp
-from lerobot_gcs_push.planner.rounding import candidate_paths
-from lerobot_gcs_push.planner.trace import trace
+from lerobot_gcs_push.box_gcs.conic_gcs import ConicGcs
+from lerobot_gcs_push.box_gcs.gcs import GcsProgram
+from lerobot_gcs_push.box_gcs.graph import ModeGraph, SourcePoint, build_graph
+from lerobot_gcs_push.box_gcs.micp import ScipMicp
+from lerobot_gcs_push.box_gcs.rounding import candidate_paths
+from lerobot_gcs_push.box_gcs.trace import trace
 from lerobot_gcs_push.planning import FREE, Plan, PlanningError
 from lerobot_gcs_push.scene import Scene
 
