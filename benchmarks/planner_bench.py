@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_gcs_push.planner import GcsPlanner
+from lerobot_gcs_push.box_gcs import GcsPlanner
 from lerobot_gcs_push.planning import Speeds
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 

@@ -21,10 +21,10 @@ import time
 
 import numpy as np
 
-from lerobot_gcs_push.planner import GcsPlanner
-from lerobot_gcs_push.planner.restriction import RestrictionCache
-from lerobot_gcs_push.planner.rounding import candidate_paths
-from lerobot_gcs_push.planner.trace import trace
+from lerobot_gcs_push.box_gcs import GcsPlanner
+from lerobot_gcs_push.box_gcs.restriction import RestrictionCache
+from lerobot_gcs_push.box_gcs.rounding import candidate_paths
+from lerobot_gcs_push.box_gcs.trace import trace
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
 STAGES = ("query", "theta", "drop_edges", "clarabel_relaxation", "rounding", "restrictions", "trace")

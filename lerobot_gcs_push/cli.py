@@ -49,7 +49,7 @@ class PlanConfig:
     heading: float = 0.0
 
     def __post_init__(self) -> None:
-        from lerobot_gcs_push.planner import check_method
+        from lerobot_gcs_push.box_gcs import check_method
         from lerobot_gcs_push.registration import SCENES
         from lerobot_gcs_push.rollout import check_env_id
 

@@ -40,7 +40,7 @@ def compilations(monkeypatch, tmp_path):
     cache of conic data in an empty directory."""
     import cvxpy as cp
 
-    from lerobot_gcs_push.planner.conic import CACHE_ENV
+    from lerobot_gcs_push.conic import CACHE_ENV
 
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     calls = []

@@ -1,7 +1,7 @@
 """A second, independent solver for the planner's shortest-path problem: Drake's `GraphOfConvexSets`.
 
 A test oracle (also timed by benchmarks/planner_bench.py), not part of the package. The mode graph
-(`lerobot_gcs_push/planner/graph.py`) is plain numpy data; here it is handed to Drake, which builds its
+(`lerobot_gcs_push/box_gcs/graph.py`) is plain numpy data; here it is handed to Drake, which builds its
 own transcription (perspective relaxation, flow conservation, degree and two-cycle constraints) and its
 own rounding. Nothing from the planner's cvxpy programs is used, so agreement between the two is
 evidence that both pose the same problem.
@@ -31,7 +31,7 @@ import numpy as np
 from pydrake.geometry.optimization import GraphOfConvexSets, GraphOfConvexSetsOptions, HPolyhedron, Point
 from pydrake.solvers import Binding, ClarabelSolver, Constraint, Cost, L2NormCost, LinearCost, LinearEqualityConstraint
 
-from lerobot_gcs_push.planner.graph import ModeGraph
+from lerobot_gcs_push.box_gcs.graph import ModeGraph
 
 
 @dataclass

@@ -175,8 +175,8 @@ def test_the_optimal_plan_has_no_regret_along_its_own_path(tmp_path):
     """Regret is zero for the expert, up to tracking lag: executed through the physics, every chunk of
     the open-loop GCS plan keeps path + V(after) - V(before) small, and the runs' sums stay near zero,
     while V at the start is the plan's own optimal cost (two independent routes to the same number)."""
+    from lerobot_gcs_push.box_gcs import GcsPlanner
     from lerobot_gcs_push.evaluation import EvaluateConfig, evaluate, read_runs
-    from lerobot_gcs_push.planner import GcsPlanner
 
     out = tmp_path / "eval"
     evaluate(

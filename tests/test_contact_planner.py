@@ -11,8 +11,8 @@ import warnings
 import numpy as np
 import pytest
 
+from lerobot_gcs_push.conic.certificate import CERTIFY_TOL, certify, project_dual, solve_with_dual
 from lerobot_gcs_push.contact import ContactPlanner
-from lerobot_gcs_push.contact.certificate import CERTIFY_TOL, certify, project_dual, solve_with_dual
 from lerobot_gcs_push.planning import FREE, PUSH, PlanningError
 from lerobot_gcs_push.scene import Scene
 
@@ -258,7 +258,7 @@ def test_a_solve_the_certificate_refuses_is_repeated_with_refinement(planner, mo
     """The first solve skips Clarabel's iterative refinement; where its dual point certifies nothing, the
     same program is solved again with it, and that solve's bound is the one reported: the certificate, not
     the setting, decides."""
-    import lerobot_gcs_push.contact.certificate as certificate
+    import lerobot_gcs_push.conic.certificate as certificate
 
     relax = planner.relaxation
     pose, finger = STARTS[0]
@@ -286,7 +286,7 @@ def test_a_solve_the_certificate_refuses_is_repeated_with_refinement(planner, mo
 def test_an_uncertified_relaxation_gives_a_plan_that_says_so(monkeypatch, capsys):
     """A solve whose dual point cannot be vouched for: the plan carries no bound (None, not -inf or the
     solver's unchecked number), its gap is None, and the command line prints 'uncertified'."""
-    import lerobot_gcs_push.contact.certificate as certificate
+    import lerobot_gcs_push.conic.certificate as certificate
     from lerobot_gcs_push.cli import main
 
     monkeypatch.setattr(certificate, "certify", lambda conic, x, z, tol=CERTIFY_TOL: (None, 1.0))

@@ -65,7 +65,7 @@ def test_dataset_loads_from_the_lerobot_cache_with_the_right_features(reference)
 def test_frames_match_the_planner_and_the_initial_condition(reference):
     """Actions are the expert's commands, recomputed here from an independent planner call; the first
     state is the initial condition; the box sits in the image where the state says."""
-    from lerobot_gcs_push.planner import GcsPlanner
+    from lerobot_gcs_push.box_gcs import GcsPlanner
     from lerobot_gcs_push.planning import Speeds
     from lerobot_gcs_push.sim import PushSim
 

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from conftest import gcs_push
 
-from lerobot_gcs_push.planner import GcsPlanner, brute_force, build_graph
-from lerobot_gcs_push.planner.restriction import RestrictionCache
+from lerobot_gcs_push.box_gcs import GcsPlanner, brute_force, build_graph
+from lerobot_gcs_push.box_gcs.restriction import RestrictionCache
 from lerobot_gcs_push.planning import APPROACH, FREE, PUSH, RETREAT, PlanningError, Speeds
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
@@ -149,7 +149,7 @@ def test_bad_input_is_named(box, finger, needle):
 def test_two_cycle_constraints_are_valid_and_do_not_cut_the_optimum(planner, ics):
     """The optional two-cycle cuts must keep the MICP optimum and give a bound between the plain
     relaxation's and the optimum."""
-    from lerobot_gcs_push.planner.gcs import GcsProgram
+    from lerobot_gcs_push.box_gcs.gcs import GcsProgram
 
     plain, cuts = GcsProgram(planner.graph), GcsProgram(planner.graph, two_cycles=True)
     exact = GcsProgram(planner.graph, integer=True, two_cycles=True)

@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 from drake_oracle import build_drake_gcs, drake_options, solve_drake_gcs, solve_with_drake
 
-from lerobot_gcs_push.planner import GcsPlanner
-from lerobot_gcs_push.planner.graph import build_graph
-from lerobot_gcs_push.planner.transcription import edge_constraint, vertex_constraints, vertex_costs
+from lerobot_gcs_push.box_gcs import GcsPlanner
+from lerobot_gcs_push.box_gcs.graph import build_graph
+from lerobot_gcs_push.box_gcs.transcription import edge_constraint, vertex_constraints, vertex_costs
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
 N_CASES = 12

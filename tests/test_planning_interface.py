@@ -4,8 +4,8 @@
 import numpy as np
 import pytest
 
+from lerobot_gcs_push.box_gcs import GcsPlanner
 from lerobot_gcs_push.contact import ContactPlanner
-from lerobot_gcs_push.planner import GcsPlanner
 from lerobot_gcs_push.planning import DWELL, FREE, PUSH, Plan, Speeds
 from lerobot_gcs_push.planning.expert import BOX_RULE, TURNING_RULE, PlanExpert
 from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert, make_planner, speeds_for

@@ -21,7 +21,7 @@ import scipy.sparse as sp
 
 
 def solve_all(path: str, method: str) -> None:
-    from lerobot_gcs_push.contact.certificate import certify
+    from lerobot_gcs_push.conic.certificate import certify
 
     walls, bounds = [], []
     for conic in pickle.loads(open(path, "rb").read()):

@@ -12,7 +12,7 @@ import clarabel
 import numpy as np
 import scipy.sparse as sp
 
-from lerobot_gcs_push.contact.certificate import certify
+from lerobot_gcs_push.conic.certificate import certify
 from lerobot_gcs_push.planning.factory import make_planner
 from lerobot_gcs_push.registration import make_env
 

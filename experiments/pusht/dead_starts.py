@@ -16,8 +16,8 @@ import time
 
 import numpy as np
 
-from lerobot_gcs_push.contact.certificate import certify, solve_with_dual
-from lerobot_gcs_push.planner.conic import _scatter
+from lerobot_gcs_push.conic.certificate import certify, solve_with_dual
+from lerobot_gcs_push.conic.program import _scatter
 from lerobot_gcs_push.planning.factory import make_planner
 from lerobot_gcs_push.registration import SCENES, sample_starts
 

@@ -16,8 +16,8 @@ import scipy.sparse as sp
 sys.path.insert(0, "experiments/pusht")
 from clarabel_refinement import conics
 
-from lerobot_gcs_push.contact.certificate import certify, solve_with_dual
-from lerobot_gcs_push.planner.conic import Conic
+from lerobot_gcs_push.conic import Conic
+from lerobot_gcs_push.conic.certificate import certify, solve_with_dual
 
 
 def reduce(conic, unit=False):

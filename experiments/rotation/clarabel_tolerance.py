@@ -10,8 +10,8 @@ import clarabel
 import numpy as np
 import scipy.sparse as sp
 
+from lerobot_gcs_push.conic.certificate import certify
 from lerobot_gcs_push.contact import ContactPlanner
-from lerobot_gcs_push.contact.certificate import certify
 from lerobot_gcs_push.pusht.env import pusht_scene, reset_states
 
 planner = ContactPlanner(pusht_scene())

@@ -18,6 +18,7 @@ import argparse
 import numpy as np
 
 from benchmarks.rotation_bench import random_starts
+from lerobot_gcs_push.conic.certificate import of_solution
 from lerobot_gcs_push.contact.face_contact import C0, C1, FN, FT, ONE, S0, S1
 from lerobot_gcs_push.contact.planner import ContactPlanner
 from lerobot_gcs_push.contact.rounding import round_relaxation
@@ -80,8 +81,9 @@ def main() -> None:
                     put(vals, fr.pose, [0, 0, *heading], [2, 3])
                     v = np.r_[1.0, heading]
                     put(vals, fr.moments, np.outer(v, v))
-            bounds.append(conic.fix(vals).solve().dual_value)
-        # An uncertified bound (None: certificate.certify refused the dual point) prints as nan.
+            fixed_conic = conic.fix(vals)
+            bounds.append(of_solution(fixed_conic, fixed_conic.solve()).bound)
+        # An uncertified bound (None: conic.certificate refused the dual point) prints as nan.
         gaps = [(best.cost - b) / best.cost if b is not None else float("nan") for b in [res.bound, *bounds]]
         plan = _plan_terms(p, best)
         print(

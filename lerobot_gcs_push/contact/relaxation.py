@@ -3,7 +3,7 @@ of each interface (pose, its SO(2) second moments, the finger) across the edges.
 
 Written once with cvxpy Parameters (start pose, start finger, goal pose, which free-space pieces hold
 the start finger, each knot's arc of headings) and compiled to conic data on the planner's shared core
-(planner/conic.py), cached on disk: a query evaluates the data at its parameters and calls Clarabel.
+(the `conic` package), cached on disk: a query evaluates the data at its parameters and calls Clarabel.
 The T's compile takes a minute or more; a fresh process (a CLI plan, a worker) reads it in 20 ms, after
 the 2-3 s cvxpy spends building the program's expressions (whose variables receive each solution).
 """
@@ -17,7 +17,9 @@ from pathlib import Path
 import cvxpy as cp
 import numpy as np
 
-from lerobot_gcs_push.contact.certificate import CLARABEL_STATUS, solve_certified
+from lerobot_gcs_push.conic import ParametricConic, cached
+from lerobot_gcs_push.conic.certificate import solve_certified
+from lerobot_gcs_push.conic.solve import STATUS
 from lerobot_gcs_push.contact.face_contact import (
     MAX_STEP_ROTATION,
     ArcParameters,
@@ -27,7 +29,6 @@ from lerobot_gcs_push.contact.face_contact import (
 from lerobot_gcs_push.contact.graph import ContactGraph
 from lerobot_gcs_push.contact.model import PushModel, reachable_windows
 from lerobot_gcs_push.contact.non_collision import RelaxedNonCollision, free_regions
-from lerobot_gcs_push.planner.conic import ParametricConic, cached
 
 # The modules that write the program (the planner's rounding and expert do not change it).
 PROGRAM_SOURCES = [
@@ -47,7 +48,7 @@ def pose_moments(pose) -> np.ndarray:
 
 @dataclass
 class RelaxationResult:
-    bound: float | None  # a certified lower bound on every plan's cost (`certificate.certify`), None: uncertified
+    bound: float | None  # a certified lower bound on every plan's cost (`conic.certificate`), None: uncertified
     status: str
     solve_time_s: float
     contact_flow: np.ndarray
@@ -240,7 +241,7 @@ class GraphRelaxation:
         dt = time.perf_counter() - t0
         return RelaxationResult(
             bound=bound,
-            status=CLARABEL_STATUS[status],
+            status=STATUS[status],
             solve_time_s=dt,
             contact_flow=np.clip(self.phi_c.value, 0, 1),
             free_flow=np.clip(self.phi_f.value, 0, 1),

@@ -23,13 +23,13 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_gcs_push.box_gcs import plannable
 from lerobot_gcs_push.evaluation import GCS_POLICIES, read_runs
 from lerobot_gcs_push.evaluation.learned import PIXELS_OBS
 from lerobot_gcs_push.files import atomic_path
 from lerobot_gcs_push.generate import GenerateConfig, GenerateReport, dataset_root, generate
 from lerobot_gcs_push.generate.config import OutputConfig
 from lerobot_gcs_push.improve.stalls import StallRule, stall_branch_states
-from lerobot_gcs_push.planner import plannable
 from lerobot_gcs_push.planning.factory import check_cost_to_go
 from lerobot_gcs_push.registration import ENV_ID, SCENES
 from lerobot_gcs_push.scene import Scene

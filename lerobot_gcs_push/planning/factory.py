@@ -10,7 +10,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from lerobot_gcs_push.planner import GcsPlanner, plannable
+from lerobot_gcs_push.box_gcs import GcsPlanner, plannable
 from lerobot_gcs_push.planning import Planner, PlanningError, Speeds
 from lerobot_gcs_push.planning.expert import PlanExpert
 from lerobot_gcs_push.pusht.agent import COMMANDS
@@ -107,7 +107,7 @@ class ExpertConfig(Shared):
     fine_within: float | None = None
 
     def __post_init__(self) -> None:
-        from lerobot_gcs_push.planner import check_method
+        from lerobot_gcs_push.box_gcs import check_method
 
         if self.mode not in (None, *EXPERTS, REPLAY):
             raise ValueError(f"unknown expert {self.mode!r}: choose one of {(*EXPERTS, REPLAY)}")

@@ -1,6 +1,6 @@
 """The one rounding walk: from the edge flows of a relaxed shortest-path program to a source-target path.
 
-Both planners round with it: the box's mode graph (`planner/rounding.py`) and the layered graph through
+Both planners round with it: the box's mode graph (`box_gcs/rounding.py`) and the layered graph through
 contact (`contact/rounding.py`). A graph is given to it by `out(vertex)`: the vertex's out-edges as
 (edge, head, flow) in a fixed order, so neither graph's types leak in here.
 """

@@ -111,7 +111,7 @@ class SliderKind:
 
     # The expert.
     def make_planner(self, scene: Scene, method: str = "relaxation") -> Planner:
-        from lerobot_gcs_push.planner import GcsPlanner
+        from lerobot_gcs_push.box_gcs import GcsPlanner
 
         return GcsPlanner(scene, method=method)
 

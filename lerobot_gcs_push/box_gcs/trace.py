@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lerobot_gcs_push.planner.graph import FreePoint, ModeGraph, PushPoint, VertexKind
+from lerobot_gcs_push.box_gcs.graph import FreePoint, ModeGraph, PushPoint, VertexKind
 from lerobot_gcs_push.planning.plan import APPROACH, FREE, PUSH, RETREAT, SegmentKind
 from lerobot_gcs_push.scene import Scene
 

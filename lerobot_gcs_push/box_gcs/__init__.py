@@ -11,9 +11,9 @@ relaxation or MICP), `rounding` and `restriction` (from flows to a path, and the
 and the error are the package's one planning interface (`lerobot_gcs_push.planning`).
 """
 
-from lerobot_gcs_push.planner.graph import build_graph
-from lerobot_gcs_push.planner.planner import METHODS, GcsPlanner, Query, check_method, plannable
-from lerobot_gcs_push.planner.restriction import brute_force
+from lerobot_gcs_push.box_gcs.graph import build_graph
+from lerobot_gcs_push.box_gcs.planner import METHODS, GcsPlanner, Query, check_method, plannable
+from lerobot_gcs_push.box_gcs.restriction import brute_force
 
 __all__ = [
     "METHODS",

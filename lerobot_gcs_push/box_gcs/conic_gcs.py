@@ -19,11 +19,13 @@ from dataclasses import dataclass
 import cvxpy as cp
 import numpy as np
 
-from lerobot_gcs_push.planner import gcs, transcription
-from lerobot_gcs_push.planner.conic import Conic, Fixing, Infeasible, ParametricConic, cached
-from lerobot_gcs_push.planner.gcs import FlowSolution, GcsProgram, free_coords
-from lerobot_gcs_push.planner.graph import ModeGraph
-from lerobot_gcs_push.planner.restriction import PathSolution
+from lerobot_gcs_push.box_gcs import gcs, transcription
+from lerobot_gcs_push.box_gcs.gcs import FlowSolution, GcsProgram, free_coords
+from lerobot_gcs_push.box_gcs.graph import ModeGraph
+from lerobot_gcs_push.box_gcs.restriction import PathSolution
+from lerobot_gcs_push.conic import Conic, Fixing, Infeasible, ParametricConic, cached
+from lerobot_gcs_push.conic.certificate import Certificate, of_solution
+from lerobot_gcs_push.conic.solve import ConicSolution
 from lerobot_gcs_push.planning.interface import PlanningError
 
 
@@ -33,6 +35,17 @@ class ConicQuery:
 
     conic: Conic
     flows: FlowSolution
+    relaxed: Conic | None = None  # the relaxation as solved: `conic` with the forbidden edges dropped
+    solution: ConicSolution | None = None  # Clarabel's answer on it, its dual point unchecked
+
+    def certificate(self, plan: PathSolution | None = None) -> Certificate:
+        """The relaxation's bound on the query's optimum, from its dual point checked (`conic.certificate`);
+        `plan`: a path's restriction, a feasible point of the same program near the optimum, which joins
+        the region the certificate assumes the optimum lies in, and whose largest entry sets its scale
+        (every variable here is a flow, a copy of a point in the workspace or a length there)."""
+        if plan is None or plan.x is None:
+            return of_solution(self.relaxed, self.solution)
+        return of_solution(self.relaxed, self.solution, (plan.x,), float(np.max(np.abs(plan.x))))
 
 
 def parametric(graph: ModeGraph, integer: bool = False) -> ParametricConic:
@@ -106,7 +119,8 @@ class ConicGcs:
         try:
             dropped = tuple(i for i in range(len(allowed)) if allowed[i] <= 0)
             values, key = self.cols.fixed(dropped, {}), ("relaxation", dropped)
-            sol = conic.fix(values, self.fixing(conic, key, values)).solve()
+            relaxed = conic.fix(values, self.fixing(conic, key, values))
+            sol = relaxed.solve()
         except Infeasible:
             sol = None
         elapsed = time.perf_counter() - t0
@@ -114,7 +128,7 @@ class ConicGcs:
             status = "infeasible" if sol is None else sol.status
             raise PlanningError(f"CLARABEL returned status {status!r} on the GCS relaxation")
         flows = np.clip(sol.x[self.cols.y], 0.0, 1.0)
-        return ConicQuery(conic, FlowSolution(sol.value, flows, elapsed, sol.status))
+        return ConicQuery(conic, FlowSolution(sol.value, flows, elapsed, sol.status), relaxed, sol)
 
     def at(self, src, goal, allowed) -> Conic:
         return self.data.at(np.concatenate([src, goal, allowed]))
@@ -137,7 +151,7 @@ class ConicGcs:
             return PathSolution(edges, vertices, np.inf, {}, elapsed)
         theta = np.concatenate([src, goal])
         points = {g.edges[i].v: self._point(g.edges[i].v, sol.x[self.cols.w[i]], theta) for i in edges[:-1]}
-        return PathSolution(edges, vertices, sol.value, points, elapsed, accurate=sol.status == "Solved")
+        return PathSolution(edges, vertices, sol.value, points, elapsed, accurate=sol.status == "Solved", x=sol.x)
 
     def _point(self, v: int, unpinned: np.ndarray, theta: np.ndarray) -> np.ndarray:
         vert = self.graph.vertices[v]

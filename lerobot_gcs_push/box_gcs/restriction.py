@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import cvxpy as cp
 import numpy as np
 
-from lerobot_gcs_push.planner.graph import ModeGraph
-from lerobot_gcs_push.planner.transcription import edge_constraint, vertex_constraints, vertex_costs
+from lerobot_gcs_push.box_gcs.graph import ModeGraph
+from lerobot_gcs_push.box_gcs.transcription import edge_constraint, vertex_constraints, vertex_costs
 
 
 @dataclass
@@ -24,6 +24,7 @@ class PathSolution:
     points: dict[int, np.ndarray]
     solve_time_s: float
     accurate: bool = True  # False when Clarabel reports OPTIMAL_INACCURATE
+    x: np.ndarray | None = None  # the point in the relaxation's conic variables (conic_gcs.py), where solved there
 
     def rank(self) -> tuple:
         """Order for choosing among candidates: accurate solutions first, then cost."""

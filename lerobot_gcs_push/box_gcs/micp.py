@@ -22,10 +22,10 @@ import time
 import numpy as np
 from pyscipopt import Model, quicksum
 
-from lerobot_gcs_push.planner.conic import Conic, Infeasible
-from lerobot_gcs_push.planner.conic_gcs import EdgeColumns, parametric
-from lerobot_gcs_push.planner.gcs import FlowSolution
-from lerobot_gcs_push.planner.graph import ModeGraph
+from lerobot_gcs_push.box_gcs.conic_gcs import EdgeColumns, parametric
+from lerobot_gcs_push.box_gcs.gcs import FlowSolution
+from lerobot_gcs_push.box_gcs.graph import ModeGraph
+from lerobot_gcs_push.conic import Conic, Infeasible
 from lerobot_gcs_push.planning.interface import PlanningError
 
 

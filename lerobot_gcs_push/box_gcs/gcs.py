@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import cvxpy as cp
 import numpy as np
 
-from lerobot_gcs_push.planner.graph import ModeGraph, VertexKind
-from lerobot_gcs_push.planner.transcription import edge_constraint, in_set, vertex_costs
+from lerobot_gcs_push.box_gcs.graph import ModeGraph, VertexKind
+from lerobot_gcs_push.box_gcs.transcription import edge_constraint, in_set, vertex_costs
 from lerobot_gcs_push.planning.interface import PlanningError
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import cvxpy as cp
 
-from lerobot_gcs_push.planner.graph import Edge, Vertex
+from lerobot_gcs_push.box_gcs.graph import Edge, Vertex
 
 
 def in_set(vert: Vertex, x, y=1) -> list[cp.Constraint]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lerobot_gcs_push.planner.graph import ModeGraph
+from lerobot_gcs_push.box_gcs.graph import ModeGraph
 from lerobot_gcs_push.planning.flow_walk import walk
 
 

@@ -5,169 +5,24 @@ the solution) costs more than Clarabel's solve on programs this small, and its c
 planner's semidefinite programs takes a minute or more. The programs here are DPP, so their conic data
 min c.x + d  s.t.  A x + s = b, s in (zero, nonneg, second-order, PSD cones)  is affine in the
 parameters: `ParametricConic` evaluates it once at theta = 0 and once per unit vector of theta, keeps
-the parts that move (sparse: most entries do not), and a query is a sparse matrix-vector product.
-`Conic.fix` then removes variables with known values (the edges a query forbids, or all edges off a
-path): the subproblem is the same program, only smaller. `cached` keeps the data on disk.
+the parts that move (sparse: most entries do not), and a query is a sparse matrix-vector product
+(`at`, a `program.Conic`). cache.py keeps the data on disk.
 """
 
 from __future__ import annotations
 
-import contextlib
-import hashlib
 import json
 import os
 import tempfile
-from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 
-import clarabel
 import cvxpy as cp
 import numpy as np
 import scipy.sparse as sp
 from cvxpy import settings as cvxpy_settings
 from cvxpy.lin_ops.lin_op import CONSTANT_ID
 
-FEAS_TOL = 1e-9  # a row left without variables must hold on its constant to this
-CACHE_ENV = "LEROBOT_GCS_PUSH_CACHE"  # where conic data is kept between processes ("" : nowhere)
-
-
-class Infeasible(Exception):
-    """Fixing variables left a constant row that does not hold."""
-
-
-@dataclass
-class ConicSolution:
-    status: str  # Clarabel's: "Solved", "AlmostSolved", "PrimalInfeasible", ...
-    value: float  # inf unless solved
-    x: np.ndarray  # every variable of the program `fix` was called on (fixed ones at their values)
-    solve_time_s: float
-    # The dual objective: by weak duality a lower bound on the optimum (up to the dual's feasibility
-    # tolerance, 1e-7 when Solved, Clarabel's reduced ~5e-5 when AlmostSolved), where the primal value
-    # only approximates the optimum from either side.
-    dual_value: float = -np.inf
-
-    @property
-    def solved(self) -> bool:
-        return self.status in ("Solved", "AlmostSolved")
-
-
-@dataclass
-class Conic:
-    """min c.x + d s.t. A x + s = b, s in zero^nz x nonneg^nn x SOC(soc[0]) x ... x PSD(psd[0]) x ...
-    (a PSD cone's rows: the upper triangle of an n x n matrix, column by column, off-diagonals times
-    sqrt 2, as cvxpy writes them for Clarabel)."""
-
-    A: sp.csc_matrix
-    b: np.ndarray
-    c: np.ndarray
-    d: float
-    zero: int
-    nonneg: int
-    soc: list[int]
-    free: np.ndarray | None = None  # columns of the original program (None: this is it)
-    fixed: np.ndarray | None = None  # the original program's x with the fixed values filled in
-    psd: list[int] = field(default_factory=list)
-
-    def fix(self, values: np.ndarray, fixing: Fixing | None = None) -> Conic:
-        """The program with the variables whose entry in `values` is not NaN fixed to it. `fixing`: the
-        same variables' `Fixing`, computed once for programs of this sparsity pattern."""
-        return (fixing or Fixing(self, ~np.isnan(values))).apply(self, values)
-
-    def solve(self, tol: float = 1e-7) -> ConicSolution:
-        """Clarabel on this data, at tolerances `tol` (cvxpy passes its defaults, 1e-8). A new solver each
-        time: reusing one through Clarabel's `update` saves its setup (a fifth of a relaxation's time),
-        but where the relaxation's optimum is not unique its flows then differ from a fresh solve's (by
-        up to 0.26 on 120 queries), and a plan would depend on what the planner solved before."""
-        n = len(self.c)
-        settings = clarabel.DefaultSettings()
-        settings.verbose = False
-        # 1e-7 instead of Clarabel's 1e-8: plans 6 % faster, every reference cost unchanged to 1e-6.
-        settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = tol
-        solver = clarabel.DefaultSolver(sp.csc_matrix((n, n)), self.c, self.A, self.b, self.cones(), settings)
-        sol = solver.solve()
-        status = str(sol.status)
-        x = np.asarray(sol.x, float)
-        full = x if self.free is None else _scatter(self.fixed, self.free, x)
-        solved = status in ("Solved", "AlmostSolved")
-        value = float(sol.obj_val) + self.d if solved else np.inf
-        dual = float(sol.obj_val_dual) + self.d if solved else -np.inf
-        return ConicSolution(status, value, full, float(sol.solve_time), dual)
-
-    def cones(self) -> list:
-        cones = [clarabel.ZeroConeT(self.zero)] if self.zero else []
-        if self.nonneg:
-            cones.append(clarabel.NonnegativeConeT(self.nonneg))
-        return (
-            cones + [clarabel.SecondOrderConeT(k) for k in self.soc] + [clarabel.PSDTriangleConeT(k) for k in self.psd]
-        )
-
-
-class Fixing:
-    """Which rows and matrix entries survive fixing the variables in `fixed` (a mask over x), worked
-    out from a program's sparsity pattern alone, so that it serves every program with that pattern
-    (every query, for one set of dropped edges or one path): applying it is a gather of A's entries.
-    Rows left without variables are dropped, after `apply` checks their constants against the cone
-    (raising `Infeasible`); a second-order cone keeps its rows while any of them has a variable, a PSD
-    cone always."""
-
-    def __init__(self, pattern: Conic, fixed: np.ndarray):
-        A, m = pattern.A, pattern.A.shape[0]
-        self.free = np.flatnonzero(~fixed)
-        entry_col = np.repeat(np.arange(A.shape[1]), np.diff(A.indptr))
-        kept = ~fixed[entry_col]
-        used = np.bincount(A.indices[kept], minlength=m) > 0
-        zero, nonneg = np.arange(pattern.zero), pattern.zero + np.arange(pattern.nonneg)
-        self.empty_zero, self.empty_nonneg = zero[~used[zero]], nonneg[~used[nonneg]]
-        rows, self.soc, self.empty_soc = [zero[used[zero]], nonneg[used[nonneg]]], [], []
-        start = pattern.zero + pattern.nonneg
-        for k in pattern.soc:
-            cone = np.arange(start, start + k)
-            start += k
-            if used[cone].any():
-                rows.append(cone)
-                self.soc.append(k)
-            else:
-                self.empty_soc.append(cone)
-        rows.append(np.arange(start, m))  # the PSD cones, kept whole
-        self.psd = list(pattern.psd)
-        self.rows = np.concatenate(rows).astype(int)
-        self.zero, self.nonneg = len(rows[0]), len(rows[1])
-        # Rows keep their order, so the surviving entries are already in CSC order.
-        new_row = np.full(m, -1)
-        new_row[self.rows] = np.arange(len(self.rows))
-        self.gather = np.flatnonzero(kept & (new_row[A.indices] >= 0))
-        self.indices = new_row[A.indices[self.gather]].astype(np.int32)
-        counts = np.bincount(entry_col[self.gather], minlength=A.shape[1])[self.free]
-        self.indptr = np.r_[0, np.cumsum(counts)].astype(np.int32)
-        self.shape = (len(self.rows), len(self.free))
-
-    def apply(self, conic: Conic, values: np.ndarray) -> Conic:
-        v = np.where(np.isnan(values), 0.0, values)
-        b = conic.b - conic.A @ v
-        bad = np.any(np.abs(b[self.empty_zero]) > FEAS_TOL) or np.any(b[self.empty_nonneg] < -FEAS_TOL)
-        if bad or any(b[c[0]] < np.linalg.norm(b[c[1:]]) - FEAS_TOL for c in self.empty_soc):
-            raise Infeasible
-        base_free = np.arange(len(conic.c)) if conic.free is None else conic.free
-        base_fixed = values if conic.fixed is None else _scatter(conic.fixed, conic.free, values)
-        return Conic(
-            A=sp.csc_matrix((conic.A.data[self.gather], self.indices, self.indptr), shape=self.shape),
-            b=b[self.rows],
-            c=conic.c[self.free],
-            d=conic.d + float(conic.c @ v),
-            zero=self.zero,
-            nonneg=self.nonneg,
-            soc=self.soc,
-            free=base_free[self.free],
-            fixed=base_fixed,
-            psd=self.psd,
-        )
-
-
-def _scatter(base: np.ndarray, where: np.ndarray, values: np.ndarray) -> np.ndarray:
-    out = base.copy()
-    out[where] = values
-    return out
+from lerobot_gcs_push.conic.program import Conic
 
 
 class ParametricConic:
@@ -309,72 +164,6 @@ class ParametricConic:
         return Conic(
             A, self.b_map @ t, self.c_map @ t, float(self.d_map @ t), self.zero, self.nonneg, self.soc, psd=self.psd
         )
-
-
-def cached(
-    name: str, key: bytes, sources: list[str], build: Callable[[], ParametricConic], check=None
-) -> ParametricConic:
-    """`build()`'s conic data, kept on disk under `name` and a digest of `key` (the program's data), of
-    `sources` (the modules that write it), of this module and of cvxpy's version, so that a fresh planner
-    (every CLI call, every worker process) reads it instead of compiling. `check(data)` vets what is
-    read (its sizes against the program's); a file that fails it, or cannot be read, is built again."""
-    h = hashlib.sha256(key)
-    for source in [*sources, __file__]:
-        h.update(Path(source).read_bytes())
-    h.update(cp.__version__.encode())
-    root = os.environ[CACHE_ENV] if CACHE_ENV in os.environ else str(Path.home() / ".cache" / "lerobot_gcs_push")
-    path = Path(root) / f"{name}-{h.hexdigest()[:24]}.npz" if root else None
-    data = _read(path, check)
-    if data is not None:
-        return data
-    # One process builds; the others wait and read its file. The T's compile peaks near 12 GB: two
-    # `generate` workers compiling it at once on a fresh machine were killed for memory (24 GiB).
-    with _exclusive(path):
-        data = _read(path, check)
-        if data is not None:
-            return data
-        data = build()
-        if path is not None:
-            with contextlib.suppress(OSError):  # a read-only home: no cache, only a slower start
-                data.save(path)
-    return data
-
-
-def _read(path: Path | None, check) -> ParametricConic | None:
-    """The data kept at `path` if it is there and passes `check`; a file that does not is removed."""
-    if path is None or not path.exists():
-        return None
-    try:
-        data = ParametricConic.load(path)
-        if check is None or check(data):
-            return data
-    except Exception:  # truncated by a full disk, say: zipfile and numpy raise errors of their own
-        pass
-    with contextlib.suppress(OSError):
-        path.unlink()
-    return None
-
-
-@contextlib.contextmanager
-def _exclusive(path: Path | None):
-    """An exclusive lock on `path`'s lock file while the block runs (none without a cache, where locks
-    cannot be taken, or where the directory cannot be written)."""
-    if path is None:
-        yield
-        return
-    try:
-        import fcntl
-
-        path.parent.mkdir(parents=True, exist_ok=True)
-        lock = open(path.with_name(path.name + ".lock"), "a")  # noqa: SIM115 (held across the yield)
-    except (ImportError, OSError):  # no fcntl (Windows), a read-only cache
-        yield
-        return
-    try:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        yield
-    finally:
-        lock.close()  # releases the lock
 
 
 def _entries(A) -> tuple[np.ndarray, np.ndarray]:

@@ -8,12 +8,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lerobot_gcs_push.planner.conic_gcs import ConicGcs
-from lerobot_gcs_push.planner.gcs import GcsProgram
-from lerobot_gcs_push.planner.graph import ModeGraph, SourcePoint, build_graph
-from lerobot_gcs_push.planner.micp import ScipMicp
-from lerobot_gcs_push.planner.rounding import candidate_paths
-from lerobot_gcs_push.planner.trace import trace
+from lerobot_gcs_push.box_gcs.conic_gcs import ConicGcs
+from lerobot_gcs_push.box_gcs.gcs import GcsProgram
+from lerobot_gcs_push.box_gcs.graph import ModeGraph, SourcePoint, build_graph
+from lerobot_gcs_push.box_gcs.micp import ScipMicp
+from lerobot_gcs_push.box_gcs.rounding import candidate_paths
+from lerobot_gcs_push.box_gcs.trace import trace
 from lerobot_gcs_push.planning import FREE, Plan, PlanningError
 from lerobot_gcs_push.scene import Scene
 
@@ -134,7 +134,9 @@ class GcsPlanner:
             return self._plan_without_push(method, box, finger, goal, t0)
         if method == "micp":
             flows = self.micp.solve(q.src, q.goal, q.allowed)
-            conic = self.conic.at(q.src, q.goal, q.allowed)
+            # SCIP's optimum comes with SCIP's word only: the bound is the relaxation's, checked.
+            relaxed = self._relaxation_or_none(q)
+            conic = self.conic.at(q.src, q.goal, q.allowed) if relaxed is None else relaxed.conic
             paths = candidate_paths(self.graph, flows.flows, None, 1, min_flow=0.5)
         else:
             relaxed = self.conic.relax(q.src, q.goal, q.allowed)
@@ -158,8 +160,10 @@ class GcsPlanner:
             bw = np.vstack([box, bw])
             kinds = [FREE, *kinds]
             modes = ["escape", *modes]
-        # MICP: SCIP proves optimality (within its gap), so its bound is its value.
-        lower = (best.cost if method == "micp" else min(flows.value, best.cost)) + q.extra_cost
+        # The relaxation's certified bound (conic.certificate), the plan's point inside the region it assumes
+        # the optimum in; lowered to the plan's cost where the two meet within the solver's tolerance.
+        bound = None if relaxed is None else relaxed.certificate(best).bound
+        lower = None if bound is None else min(bound, best.cost) + q.extra_cost
         return Plan(
             method=method,
             cost=best.cost + q.extra_cost,
@@ -173,6 +177,12 @@ class GcsPlanner:
             candidates=len(paths),
             extra={"relaxation_time_s": flows.solve_time_s},
         )
+
+    def _relaxation_or_none(self, q: Query):
+        try:
+            return self.conic.relax(q.src, q.goal, q.allowed)
+        except PlanningError:  # no certificate, but SCIP's plan stands
+            return None
 
     def goal_of(self, box) -> np.ndarray:
         return self.scene.goal_array
