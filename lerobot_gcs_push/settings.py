@@ -12,6 +12,13 @@ from dataclasses import asdict, fields, replace
 from typing import ClassVar
 
 
+def check_choice(what: str, value, choices) -> str:
+    """`value` if it is one of `choices`, else a ValueError that lists them."""
+    if value not in choices:
+        raise ValueError(f"unknown {what} {value!r}: choose one of {tuple(choices)}")
+    return value
+
+
 def leaves(d: dict, prefix: str = "") -> dict:
     """A nested dict as {"a.b": value}."""
     out = {}

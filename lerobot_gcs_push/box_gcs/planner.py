@@ -16,14 +16,13 @@ from lerobot_gcs_push.box_gcs.rounding import candidate_paths
 from lerobot_gcs_push.box_gcs.trace import trace
 from lerobot_gcs_push.planning import FREE, Plan, PlanningError
 from lerobot_gcs_push.scene import Scene
+from lerobot_gcs_push.settings import check_choice
 
 METHODS = ("relaxation", "micp")
 
 
 def check_method(method: str) -> str:
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}: choose one of {METHODS}")
-    return method
+    return check_choice("method", method, METHODS)
 
 
 @dataclass(frozen=True)

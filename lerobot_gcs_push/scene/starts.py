@@ -10,6 +10,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from lerobot_gcs_push.settings import check_choice
+
 if TYPE_CHECKING:
     from lerobot_gcs_push.scene import Scene
 
@@ -31,9 +33,7 @@ HARD_SAMPLERS = {"hard": HARD_KINDS, "hard_v2": HARD_V2_KINDS}
 
 
 def check_sampler(sampler: str) -> str:
-    if sampler not in SAMPLERS:
-        raise ValueError(f"unknown sampler {sampler!r}: choose one of {SAMPLERS}")
-    return sampler
+    return check_choice("sampler", sampler, SAMPLERS)
 
 
 @dataclass(frozen=True)
