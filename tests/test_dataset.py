@@ -132,7 +132,7 @@ def test_worker_count_and_interruption_do_not_change_the_dataset(tmp_path, refer
     _, report = reference
     two = _cfg(tmp_path, "two", workers=2)
     generate(two)
-    assert _digest(Path(two.root)) == _digest(Path(report.root))
+    assert _digest(Path(two.output.root)) == _digest(Path(report.root))
 
     root = tmp_path / "killed"
     cmd = gcs_push("generate", f"--episodes={N}", "--repo_id=local/killed", f"--root={root}", "--workers=1")
