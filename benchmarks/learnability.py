@@ -25,19 +25,39 @@ import os
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 DEMOS = REPO / "experiments" / "pusht" / "demos"
-# Each pool's replay lists, in order; the benchmark takes their first EPISODES.
+POSITION = [DEMOS / "position" / f"seed{s}.json" for s in (4800, 4801, 4802, 4803)]
+
+
+@dataclass(frozen=True)
+class Pool:
+    """A pool's replay lists in order (the benchmark takes their first `episodes`), and how its labels are
+    read (`KeypointDataConfig.label_shift`)."""
+
+    lists: list
+    episodes: int = 1000
+    label_shift: int = 0
+
+
 POOLS = {
     # The expert steered over one action (inverting gym-pusht's PD), 2026-12-05: base 1000's pool.
-    "steer1": [DEMOS / f"seed{s}.json" for s in (4800, 4801, 4802, 4803)],
-    # Position commands (`ExpertConfig.commands="position"`), 2026-12-07.
-    "position": [DEMOS / "position" / f"seed{s}.json" for s in (4800, 4801, 4802, 4803)],
+    "steer1": Pool([DEMOS / f"seed{s}.json" for s in (4800, 4801, 4802, 4803)]),
+    # Position commands (`ExpertConfig.commands="position"`, lead 3 actions), 2026-12-07.
+    "position": Pool(POSITION),
+    # The same states, each frame labelled with the command 1 or 2 frames later: a proxy for leads 4 and 5
+    # (v1's one-frame-early windows were shift 1).
+    "position_shift1": Pool(POSITION, label_shift=1),
+    "position_shift2": Pool(POSITION, label_shift=2),
+    # Aggregated as DAgger does: the position pool and takeover round 1's 350 demonstrations from the v2
+    # position policy's stall states (`experiments/pusht/takeover/round.sh`).
+    "position_takeover1": Pool([*POSITION, DEMOS / "takeover" / "r1.json"], episodes=1350),
 }
 DEFAULT_POOL = "position"
-EPISODES, STEPS, BATCH, SEED = 1000, 20000, 64, 1000
+STEPS, BATCH, SEED = 20000, 64, 1000
 JUDGE_SEED, JUDGE_EPISODES = 12000, 100
 # v2 (2026-12-07): the trainer's action chunks start at the first observed frame, as LeRobot's do (v1's
 # started a frame later, so the policy ran each action one frame early); v1's records stay in git history.
@@ -50,7 +70,7 @@ def folder(pool: str) -> Path:
     return OUT / pool
 
 
-def train_config(pool: str, steps: int = STEPS, episodes: int = EPISODES, work=None):
+def train_config(pool: str, steps: int = STEPS, episodes: int | None = None, work=None):
     """`configs/train/pusht_keypoints.json` (what `gcs-push train` runs) on the pool's lists, its state in
     the pool's folder."""
     import draccus
@@ -59,8 +79,9 @@ def train_config(pool: str, steps: int = STEPS, episodes: int = EPISODES, work=N
 
     work = Path(work or REPO / "outputs" / "learnability" / VERSION / pool)
     raw = json.loads(CONFIG.read_text())
-    raw["data"] |= {"lists": [str(p) for p in POOLS[pool]], "episodes": episodes,
-                    "cache_dir": str(REPO / "outputs" / "keypoints")}  # fmt: skip
+    spec = POOLS[pool]
+    raw["data"] |= {"lists": [str(p) for p in spec.lists], "episodes": episodes or spec.episodes,
+                    "cache_dir": str(REPO / "outputs" / "keypoints"), "label_shift": spec.label_shift}  # fmt: skip
     raw["schedule"] |= {"steps": steps, "batch_size": BATCH}
     raw |= {"preset": str(REPO / raw["preset"]), "output_dir": str(work / "train"),
             "partial_dir": str(folder(pool) / "partial"), "seed": SEED}  # fmt: skip
@@ -88,7 +109,7 @@ def judge(policy_dir: Path, out: Path, seed: int = JUDGE_SEED, episodes: int = J
 
 
 def run(pool: str = DEFAULT_POOL, stage_minutes: float | None = None, steps: int = STEPS,
-        episodes: int = EPISODES, judge_episodes: int = JUDGE_EPISODES) -> dict:  # fmt: skip
+        episodes: int | None = None, judge_episodes: int = JUDGE_EPISODES) -> dict:  # fmt: skip
     """Train the pool's policy to the budget (or for one stage), then judge it; the record lands in
     `experiments/pusht/learnability/v2/<pool>/result.json`."""
     from lerobot_gcs_push.pusht.keypoint_training import train
@@ -103,8 +124,9 @@ def run(pool: str = DEFAULT_POOL, stage_minutes: float | None = None, steps: int
         return stage | {"status": "stage ended: run the same command again to go on"}
     result = {
         "pool": pool,
-        "lists": [str(p.relative_to(REPO)) for p in POOLS[pool]],
-        "episodes": episodes,
+        "lists": [str(p.relative_to(REPO)) for p in POOLS[pool].lists],
+        "episodes": cfg.data.episodes,
+        "label_shift": cfg.data.label_shift,
         "steps": steps,
         "batch_size": BATCH,
         "samples": steps * BATCH,

@@ -231,3 +231,20 @@ def test_init_from_must_be_a_keypoint_policy(tmp_path):
     (folder / "config.json").write_text(json.dumps({"type": "diffusion", "input_features": {"observation.image": {}}}))
     with pytest.raises(ValueError, match="not a keypoint diffusion policy"):
         _fine_tune(tmp_path, str(folder), 2, "x")
+
+
+def test_labels_taken_later_stay_within_their_episode():
+    """Hand-computed: episodes of 3 and 2 frames, actions 0..4; two frames later, each episode's last
+    action repeats past its end, and the observations are untouched."""
+    arrays = {"observation.state": np.arange(10, dtype=np.float32).reshape(5, 2),
+              "observation.environment_state": np.zeros((5, 16), np.float32),
+              "action": np.repeat(np.arange(5, dtype=np.float32)[:, None], 2, axis=1)}  # fmt: skip
+    data = keypoint_data.Episodes(arrays, np.array([3, 5]))
+    assert data.labels_ahead(0) is data
+    ahead = data.labels_ahead(2)
+    assert ahead.arrays["action"][:, 0].tolist() == [2, 2, 2, 4, 4]
+    assert ahead.arrays["action"][:, 1].tolist() == [2, 2, 2, 4, 4]
+    assert data.labels_ahead(1).arrays["action"][:, 0].tolist() == [1, 2, 2, 4, 4]
+    np.testing.assert_array_equal(ahead.arrays["observation.state"], arrays["observation.state"])
+    with pytest.raises(ValueError, match="later, not earlier"):
+        data.labels_ahead(-1)

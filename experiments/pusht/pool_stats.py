@@ -12,12 +12,14 @@ import sys
 
 import numpy as np
 
-from benchmarks.learnability import EPISODES, POOLS, REPO
+from benchmarks.learnability import POOLS, REPO
 from lerobot_gcs_push.pusht import keypoint_data
 
 
 def stats(pool: str) -> dict:
-    data = keypoint_data.load(POOLS[pool], EPISODES, REPO / "outputs" / "keypoints", progress=False)
+    data = keypoint_data.load(
+        POOLS[pool].lists, POOLS[pool].episodes, REPO / "outputs" / "keypoints", progress=False
+    ).labels_ahead(POOLS[pool].label_shift)
     act, agent = data.arrays["action"].astype(float), data.arrays["observation.state"].astype(float)
     second_a, second_s, frames = [], [], np.diff(np.concatenate([[0], data.ends]))
     for s, e in zip(data.starts(), data.ends):

@@ -41,6 +41,18 @@ class Episodes:
     def starts(self) -> np.ndarray:
         return np.concatenate([[0], self.ends[:-1]]).astype(int)
 
+    def labels_ahead(self, frames: int) -> Episodes:
+        """Each frame labelled with its episode's action `frames` later (the last action where that is past
+        the end): commands that lead further, on the same states, without planning again."""
+        if frames < 0:
+            raise ValueError(f"labels can be taken later, not earlier: got {frames} frames")
+        if frames == 0:
+            return self
+        index = np.arange(self.frames)
+        last = np.repeat(self.ends - 1, np.diff(np.concatenate([[0], self.ends])))
+        arrays = dict(self.arrays) | {ACTION: self.arrays[ACTION][np.minimum(index + frames, last)]}
+        return Episodes(arrays, self.ends)
+
 
 def read_lists(paths, episodes: int | None = None) -> list[dict]:
     """The episodes of the replay lists in order, the first `episodes` of them (all: None)."""

@@ -44,6 +44,9 @@ class KeypointDataConfig:
     episodes: int | None = None
     # Where the replayed arrays are kept, under the hash of what was replayed.
     cache_dir: str = "outputs/keypoints"
+    # Learn each frame's command this many frames later (the episode's last past its end): a proxy for
+    # commands that lead further, measured without planning the pool again.
+    label_shift: int = 0
 
 
 @dataclass
@@ -84,6 +87,8 @@ class TrainKeypointsConfig:
     def __post_init__(self) -> None:
         if not self.data.lists:
             raise ValueError("data.lists is empty: give the replay lists to train on")
+        if self.data.label_shift < 0:
+            raise ValueError(f"data.label_shift must be >= 0, got {self.data.label_shift}")
         if self.threads < 1:
             raise ValueError(f"threads must be >= 1, got {self.threads}")
         for name in ("steps", "batch_size", "warmup_steps"):
@@ -195,6 +200,7 @@ def prepare(cfg: TrainKeypointsConfig, progress: bool = True) -> Start:
         pcfg = base_config(cfg.init_from)
     pcfg.device = "cpu" if pcfg.device in (None, "cuda") and not torch.cuda.is_available() else pcfg.device
     data = keypoint_data.load(cfg.data.lists, cfg.data.episodes, cfg.data.cache_dir, progress)
+    data = data.labels_ahead(cfg.data.label_shift)
     if cfg.init_from is None:
         stats = stats_of(data)
     else:
