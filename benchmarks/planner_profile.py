@@ -25,6 +25,7 @@ from lerobot_gcs_push.box_gcs import GcsPlanner
 from lerobot_gcs_push.box_gcs.restriction import RestrictionCache
 from lerobot_gcs_push.box_gcs.rounding import candidate_paths
 from lerobot_gcs_push.box_gcs.trace import trace
+from lerobot_gcs_push.conic.solve import solve
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
 STAGES = ("query", "theta", "drop_edges", "clarabel_relaxation", "rounding", "restrictions", "trace")
@@ -64,7 +65,7 @@ def profile_relaxation(planner: GcsPlanner, ics) -> dict:
         values = conic.cols.fixed(key[1], {})
         dropped = data.fix(values, conic.fixing(data, key, values))
         t.append(time.perf_counter())
-        sol = dropped.solve()
+        sol = solve(dropped)
         t.append(time.perf_counter())
         flows = np.clip(sol.x[conic.cols.y], 0, 1)
         paths = candidate_paths(graph, flows, _seed_rng(planner, q), planner.rounding_trials)

@@ -118,8 +118,8 @@ def execute(env_id: str, planner: ContactPlanner, starts, mode: str) -> dict:
     import gymnasium as gym
 
     import lerobot_gcs_push  # noqa: F401  (registers the envs)
+    from lerobot_gcs_push.episodes.rollout import rollout
     from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
-    from lerobot_gcs_push.rollout import rollout
 
     env = gym.make(env_id, max_sim_time_s=60.0, image_size=(32, 32)).unwrapped  # the camera is not scored
     expert = make_expert(env.scene, env.fps, ExpertConfig(mode=mode), planner)

@@ -14,6 +14,8 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
+from lerobot_gcs_push.artifacts.shipped import shipped_path
+from lerobot_gcs_push.episodes.workers import FanOut
 from lerobot_gcs_push.evaluation import EvaluateConfig
 from lerobot_gcs_push.generate import GenerateConfig
 from lerobot_gcs_push.improve import ImproveConfig
@@ -22,8 +24,6 @@ from lerobot_gcs_push.pusht.keypoint_training import TrainKeypointsConfig
 from lerobot_gcs_push.registration import ENV_ID
 from lerobot_gcs_push.scene import is_finite_number, load_initial_conditions
 from lerobot_gcs_push.settings import flat_argv
-from lerobot_gcs_push.shipped import shipped_path
-from lerobot_gcs_push.workers import FanOut
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")  # nothing here may reach the network unless asked to
 
@@ -50,8 +50,8 @@ class PlanConfig:
 
     def __post_init__(self) -> None:
         from lerobot_gcs_push.box_gcs import check_method
+        from lerobot_gcs_push.episodes.rollout import check_env_id
         from lerobot_gcs_push.registration import SCENES
-        from lerobot_gcs_push.rollout import check_env_id
 
         check_method(self.method)
         if isinstance(self.heading, bool) or not is_finite_number(self.heading):

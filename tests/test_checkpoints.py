@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lerobot_gcs_push.checkpoints import MODEL_FILE, STEP_FILE, export_policy, is_pretrained_dir
+from lerobot_gcs_push.artifacts.checkpoints import MODEL_FILE, STEP_FILE, export_policy, is_pretrained_dir
 
 SHIPPED = Path(__file__).resolve().parents[1] / "policies" / "diffusion_cpu"
 

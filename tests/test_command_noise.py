@@ -52,8 +52,8 @@ def test_bad_noise_specs_are_refused(spec):
 
 def _hand_episode(noise, expected_run=None, steps=12):
     """A hand policy's targets (a slow sweep in free space) recorded under `noise`."""
+    from lerobot_gcs_push.episodes.rollout import rollout
     from lerobot_gcs_push.registration import make_env
-    from lerobot_gcs_push.rollout import rollout
 
     env = make_env(PUSHT_ENV_ID, max_sim_time_s=steps / 10, obs_type="environment_state_agent_pos")
 

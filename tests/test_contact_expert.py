@@ -289,9 +289,9 @@ def test_a_start_with_no_plan_is_a_failed_run_not_a_crash(monkeypatch):
     whole `generate` once). Stood in for by a planner that always fails, so that the test does not hang
     on that start's numerics: the expert holds the finger where it is, and the episode runs out as a
     failure that the generator and the evaluation record."""
+    from lerobot_gcs_push.episodes.rollout import rollout
     from lerobot_gcs_push.planning import PlanningError
     from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
-    from lerobot_gcs_push.rollout import rollout
 
     env = gym.make(SE2_ENV_ID, max_sim_time_s=1.0, image_size=(32, 32)).unwrapped
     expert = make_expert(SE2, env.fps, ExpertConfig(mode="closed-loop"))
@@ -464,10 +464,10 @@ def test_a_far_finger_with_no_plan_goes_straight_at_the_slider_and_plans_from_th
     finger's plus the margin (the outline's farthest vertex from the pivot, computed here from the
     vertices): the expert plans again from the point on the way to the centre at that distance, and its
     first commands run from the finger straight along that line at free speed."""
+    from lerobot_gcs_push.episodes.rollout import rollout
     from lerobot_gcs_push.planning import FREE, Plan, PlanningError
     from lerobot_gcs_push.planning.expert import STAGE_MARGIN_M
     from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
-    from lerobot_gcs_push.rollout import rollout
 
     env = gym.make(SE2_ENV_ID, max_sim_time_s=1.0, image_size=(32, 32)).unwrapped
     expert = make_expert(SE2, env.fps, ExpertConfig(mode="closed-loop"))

@@ -140,10 +140,10 @@ def test_corrections_alone_bring_a_t_near_its_goal_to_success_in_gym_pusht(offse
     steered agent (measured 4.4 and 7.8 s), within 15 s with position commands, whose path starts and stops
     under the acceleration bound (6.4 and 12.5 s); with them off, the T never moves."""
     pytest.importorskip("gym_pusht")
+    from lerobot_gcs_push.episodes.rollout import rollout
     from lerobot_gcs_push.planning.factory import ExpertConfig, fine_within_for, make_expert
     from lerobot_gcs_push.pusht.frame import GOAL_STATE
     from lerobot_gcs_push.registration import make_env
-    from lerobot_gcs_push.rollout import rollout
 
     env = make_env(PUSHT_ENV_ID, obs_type="state", max_sim_time_s=within_s)
     state = [100.0, 400.0, GOAL_STATE[0] + offset[0], GOAL_STATE[1] + offset[1], GOAL_STATE[2] + offset[2]]

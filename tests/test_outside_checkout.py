@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from lerobot_gcs_push.shipped import shipped_path
+from lerobot_gcs_push.artifacts.shipped import shipped_path
 
 REPO = Path(__file__).resolve().parent.parent
 

@@ -14,6 +14,7 @@ from lerobot_gcs_push.box_gcs import GcsPlanner
 from lerobot_gcs_push.box_gcs.restriction import Restriction
 from lerobot_gcs_push.conic import Infeasible, ParametricConic
 from lerobot_gcs_push.conic.certificate import of_solution
+from lerobot_gcs_push.conic.solve import solve
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
 SCENE = Scene()
@@ -77,7 +78,7 @@ def test_fixing_variables_matches_cvxpy_with_equalities():
     theta = np.array([0.5, 3.0])
     values = np.full(data.n, np.nan)
     values[data.columns["x"].start] = 0.25
-    sol = data.at(theta).fix(values).solve()
+    sol = solve(data.at(theta).fix(values))
     p.value = theta
     ref = cp.Problem(prob.objective, prob.constraints + [x[0] == 0.25]).solve(solver=cp.CLARABEL)
     assert sol.value == pytest.approx(ref, rel=1e-7)
@@ -216,7 +217,7 @@ def test_semidefinite_program_and_its_unpacked_values_match_cvxpy(tmp_path):
         fixed_ref = cp.Problem(prob.objective, cons + [y[1] == 0.5]).solve(solver=cp.CLARABEL)
         theta = np.concatenate([np.ravel(p.value, order="F") for p in params])
         for data in (built, loaded):
-            sol = data.at(theta).solve(tol=1e-9)
+            sol = solve(data.at(theta), tol=1e-9)
             assert sol.value == pytest.approx(ref, rel=1e-6)
             conic = data.at(theta)
             bound = of_solution(conic, sol).bound  # the dual point checked, not Clarabel's dual objective
@@ -227,7 +228,7 @@ def test_semidefinite_program_and_its_unpacked_values_match_cvxpy(tmp_path):
             np.testing.assert_allclose(yv, [-1.0, 2.0], atol=1e-6)
             values = np.full(data.n, np.nan)
             values[data.columns["y"].start + 1] = 0.5
-            assert data.at(theta).fix(values).solve(tol=1e-9).value == pytest.approx(fixed_ref, rel=1e-6)
+            assert solve(data.at(theta).fix(values), tol=1e-9).value == pytest.approx(fixed_ref, rel=1e-6)
 
 
 def test_conic_data_refuses_programs_it_would_get_wrong():

@@ -54,8 +54,8 @@ def test_features_are_lerobot_pushts_and_what_its_pusht_env_gives():
 def test_frames_hold_what_each_step_returned():
     """A hand policy that never moves the block: the episode runs out (3 steps), each frame holds the
     observation its action was chosen from and the reward and success of the step that followed."""
+    from lerobot_gcs_push.episodes.rollout import rollout
     from lerobot_gcs_push.registration import make_env
-    from lerobot_gcs_push.rollout import rollout
 
     env = make_env(PUSHT_ENV_ID, max_sim_time_s=0.3)
 

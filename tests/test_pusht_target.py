@@ -201,8 +201,8 @@ def test_the_steered_agent_lands_where_it_is_sent_in_gym_pusht(raw):
 def test_the_closed_loop_expert_succeeds_in_gym_pusht():
     """Three of gym-pusht's own resets (seeds no choice used), the expert through contact closed loop:
     success by gym-pusht's rule (its shapely coverage > 0.95) within its 300 steps, the actions in px."""
+    from lerobot_gcs_push.episodes.rollout import rollout
     from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
-    from lerobot_gcs_push.rollout import rollout
 
     env = make_env(PUSHT_ENV_ID, obs_type="state")
     expert = make_expert(env.scene, env.fps, ExpertConfig(mode="closed-loop"))
@@ -220,9 +220,9 @@ def test_an_agent_far_from_the_t_with_no_plan_from_where_it_stands_goes_to_it_fi
     """gym-pusht's reset of seed 9777 puts the agent 2.2 m (131 px) from the T's centre of gravity. From
     there no sampled path's restriction solves (SNOPT finds each infeasible); the expert sends the agent
     straight at the T, plans from just beyond its reach, and succeeds within gym-pusht's 300 steps."""
+    from lerobot_gcs_push.episodes.rollout import rollout
     from lerobot_gcs_push.planning import PlanningError
     from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
-    from lerobot_gcs_push.rollout import rollout
 
     env = make_env(PUSHT_ENV_ID, obs_type="state")
     expert = make_expert(env.scene, env.fps, ExpertConfig(mode="closed-loop"))

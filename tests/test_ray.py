@@ -22,10 +22,10 @@ from conftest import gcs_push, kill_when
 os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
 ray = pytest.importorskip("ray")
 
+from lerobot_gcs_push.episodes.workers import open_pool  # noqa: E402
 from lerobot_gcs_push.evaluation import TIMING_FIELDS, EvaluateConfig, evaluate, read_runs  # noqa: E402
 from lerobot_gcs_push.generate import GenerateConfig, generate, read_episode_metadata  # noqa: E402
 from lerobot_gcs_push.generate.shards import CRASH_ENV, SHARD_FILE  # noqa: E402
-from lerobot_gcs_push.workers import open_pool  # noqa: E402
 
 N = 4
 # Before the cluster starts, so that its workers inherit it: a file `episode_<i>` in this folder kills the

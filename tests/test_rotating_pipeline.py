@@ -15,11 +15,11 @@ import pytest
 from conftest import gcs_push
 
 import lerobot_gcs_push  # noqa: F401  (registers the envs)
+from lerobot_gcs_push.episodes.rollout import rollout
 from lerobot_gcs_push.evaluation import EvaluateConfig, Trajectory, read_runs
 from lerobot_gcs_push.generate import FEATURE_KEYS, EpisodeFrames, GenerateConfig
 from lerobot_gcs_push.generate.frames import _Writer
 from lerobot_gcs_push.registration import ENV_ID, SCENES, SE2_ENV_ID, TEE_ENV_ID
-from lerobot_gcs_push.rollout import rollout
 from lerobot_gcs_push.scene import sample_initial_conditions, wrap_angle
 
 POLICY = Path(__file__).resolve().parents[1] / "policies" / "diffusion_cpu"

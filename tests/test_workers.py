@@ -8,7 +8,7 @@ import os
 
 import pytest
 
-from lerobot_gcs_push.workers import InlinePool, ProcessPool, open_pool
+from lerobot_gcs_push.episodes.workers import InlinePool, ProcessPool, open_pool
 
 
 def test_two_worker_processes_return_every_result_once_under_its_ticket():

@@ -14,9 +14,9 @@ import gymnasium as gym
 import lerobot_gcs_push  # noqa: F401  (registers the envs)
 from benchmarks.rotation_bench import random_starts
 from lerobot_gcs_push.contact import ContactPlanner
+from lerobot_gcs_push.episodes.rollout import rollout
 from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
 from lerobot_gcs_push.registration import SCENES, TEE_ENV_ID
-from lerobot_gcs_push.rollout import rollout
 
 if __name__ == "__main__":
     first, stop = int(sys.argv[1]), int(sys.argv[2])

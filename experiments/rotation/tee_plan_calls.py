@@ -11,10 +11,10 @@ import time
 
 import numpy as np
 
+from lerobot_gcs_push.episodes.rollout import rollout
 from lerobot_gcs_push.planning import PlanningError
 from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
 from lerobot_gcs_push.registration import make_env
-from lerobot_gcs_push.rollout import rollout
 
 env = make_env("GcsPushT-v0", max_sim_time_s=60)
 expert = make_expert(env.scene, env.fps, ExpertConfig(mode="closed-loop"))

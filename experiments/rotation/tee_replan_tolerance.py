@@ -11,9 +11,9 @@ import time
 import gymnasium as gym
 
 import lerobot_gcs_push  # noqa: F401  (registers the envs)
+from lerobot_gcs_push.episodes.rollout import rollout
 from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert, make_planner
 from lerobot_gcs_push.registration import TEE_ENV_ID
-from lerobot_gcs_push.rollout import rollout
 
 settings = json.load(open(sys.argv[1]))
 env = gym.make(TEE_ENV_ID, max_sim_time_s=60.0, image_size=(32, 32)).unwrapped

@@ -24,7 +24,7 @@ from pathlib import Path
 import torch
 from safetensors.torch import load_file, save_file
 
-from lerobot_gcs_push.checkpoints import MODEL_FILE, export_policy, is_pretrained_dir
+from lerobot_gcs_push.artifacts.checkpoints import MODEL_FILE, export_policy, is_pretrained_dir
 
 NORMALIZER = "policy_preprocessor_step_3_normalizer_processor.safetensors"
 USED_STATS = (

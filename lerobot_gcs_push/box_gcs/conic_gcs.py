@@ -25,7 +25,7 @@ from lerobot_gcs_push.box_gcs.graph import ModeGraph
 from lerobot_gcs_push.box_gcs.restriction import PathSolution
 from lerobot_gcs_push.conic import Conic, Fixing, Infeasible, ParametricConic, cached
 from lerobot_gcs_push.conic.certificate import Certificate, of_solution
-from lerobot_gcs_push.conic.solve import ConicSolution
+from lerobot_gcs_push.conic.solve import ConicSolution, solve
 from lerobot_gcs_push.planning.interface import PlanningError
 
 
@@ -120,7 +120,7 @@ class ConicGcs:
             dropped = tuple(i for i in range(len(allowed)) if allowed[i] <= 0)
             values, key = self.cols.fixed(dropped, {}), ("relaxation", dropped)
             relaxed = conic.fix(values, self.fixing(conic, key, values))
-            sol = relaxed.solve()
+            sol = solve(relaxed)
         except Infeasible:
             sol = None
         elapsed = time.perf_counter() - t0
@@ -143,7 +143,7 @@ class ConicGcs:
         try:
             values = self.cols.fixed([i for i in range(len(g.edges)) if i not in on], {i: 1.0 for i in edges})
             key = ("path", edges)
-            sol = conic.fix(values, self.fixing(conic, key, values)).solve()
+            sol = solve(conic.fix(values, self.fixing(conic, key, values)))
         except Infeasible:
             return PathSolution(edges, vertices, np.inf, {}, time.perf_counter() - t0)
         elapsed = time.perf_counter() - t0

@@ -83,7 +83,7 @@ def check_dual(
 def of_solution(
     conic: Conic, sol: ConicSolution, points: tuple[np.ndarray, ...] = (), scale: float = 0.0
 ) -> Certificate:
-    """`check_dual` of `conic.solve()`'s answer (its x and the `points` given in the original program's
+    """`check_dual` of `solve.solve(conic)`'s answer (its x and the `points` given in the original program's
     variables, as `ConicSolution.x` is)."""
     own = (lambda v: v) if conic.free is None else (lambda v: v[conic.free])
     return check_dual(conic, own(sol.x), sol.z, points=tuple(own(p) for p in points), scale=scale)

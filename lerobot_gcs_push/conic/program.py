@@ -1,6 +1,6 @@
 """Conic data as Clarabel reads it, min c.x + d  s.t.  A x + s = b, s in K, and the same program with some
 variables fixed (`Conic.fix`): the edges a query forbids, or all edges off a path, dropped before the
-solve, so that the subproblem is the same program, only smaller."""
+solve, so that the subproblem is the same program, only smaller. `solve.solve` solves either."""
 
 from __future__ import annotations
 
@@ -9,8 +9,6 @@ from dataclasses import dataclass, field
 import clarabel
 import numpy as np
 import scipy.sparse as sp
-
-from lerobot_gcs_push.conic.solve import ConicSolution, solve
 
 FEAS_TOL = 1e-9  # a row left without variables must hold on its constant to this
 
@@ -40,10 +38,6 @@ class Conic:
         """The program with the variables whose entry in `values` is not NaN fixed to it. `fixing`: the
         same variables' `Fixing`, computed once for programs of this sparsity pattern."""
         return (fixing or Fixing(self, ~np.isnan(values))).apply(self, values)
-
-    def solve(self, tol: float = 1e-7) -> ConicSolution:
-        """Clarabel on this data (`solve.solve`: a near-solution only where its residuals are small)."""
-        return solve(self, tol)
 
     def full(self, x: np.ndarray) -> np.ndarray:
         """The original program's x from this one's (the fixed variables at their values)."""

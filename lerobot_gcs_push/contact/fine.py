@@ -12,12 +12,12 @@ No bound comes with it: the plan says "uncertified", as a plan whose bound faile
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from lerobot_gcs_push.contact.face_contact import finger_body
 from lerobot_gcs_push.contact.model import PushModel, cross
+from lerobot_gcs_push.planning.interface import Correction
 from lerobot_gcs_push.scene import wrap_angle
 
 # Contact points tried on each face, evenly over where the finger may touch it.
@@ -27,24 +27,6 @@ POINTS_PER_FACE = 9
 MAX_PUSH_M = 0.4
 # Steps the push is integrated in, and knots of its plan.
 PUSH_STEPS = 6
-
-
-@dataclass(frozen=True)
-class Correction:
-    """One push: where the finger touches (slider frame), how far, and what the model predicts."""
-
-    face: int
-    lam: float
-    direction: np.ndarray  # body-frame unit displacement of the slider per unit push
-    amount: float  # slider travel (m)
-    error: float  # what is left: `distance(predicted end, goal)`, m + rad x r_max
-    poses: np.ndarray  # (PUSH_STEPS + 1, 3) the slider's poses along the push, world
-    fingers: np.ndarray  # (PUSH_STEPS + 1, 2) the finger's centre along the push, world
-    normal: np.ndarray  # the face's outward normal, slider frame
-
-    def normal_world(self, heading: float) -> np.ndarray:
-        c, s = math.cos(heading), math.sin(heading)
-        return np.array([c * self.normal[0] - s * self.normal[1], s * self.normal[0] + c * self.normal[1]])
 
 
 def corrections(model: PushModel, pose, goal, distance) -> list[Correction]:

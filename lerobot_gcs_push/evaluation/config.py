@@ -6,12 +6,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from lerobot_gcs_push.episodes.workers import FanOut
 from lerobot_gcs_push.planning.factory import ExpertConfig
 from lerobot_gcs_push.registration import SCENES, sample_starts
 from lerobot_gcs_push.scene import load_initial_conditions
 from lerobot_gcs_push.scene.options import StartsConfig
 from lerobot_gcs_push.settings import flat_options
-from lerobot_gcs_push.workers import FanOut
 
 GCS_POLICIES = ("gcs-open-loop", "gcs-closed-loop")
 # The named evaluation sets: the paper's protocol set (uniform, seed 1000) and the hard set (seed 3000).
@@ -21,8 +21,8 @@ NAMED_SET_SEEDS = {"uniform": 1000, "sobol": 1000, "hard": 3000, "hard_v2": 3000
 def check_policy(policy: str) -> str:
     """`policy` as given (it labels the records), once it names an expert or a pretrained_model folder,
     from the working folder or shipped (`shipped.shipped_path`)."""
-    from lerobot_gcs_push.checkpoints import is_pretrained_dir
-    from lerobot_gcs_push.shipped import shipped_path
+    from lerobot_gcs_push.artifacts.checkpoints import is_pretrained_dir
+    from lerobot_gcs_push.artifacts.shipped import shipped_path
 
     if policy not in GCS_POLICIES and not is_pretrained_dir(shipped_path(policy)):
         raise ValueError(

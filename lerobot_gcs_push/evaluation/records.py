@@ -34,7 +34,7 @@ def _key(rec: dict) -> tuple:
 
 def weights_fingerprint(policy: str) -> str:
     """The first 16 hex digits of the sha256 of a learned policy's model.safetensors."""
-    from lerobot_gcs_push.shipped import shipped_path
+    from lerobot_gcs_push.artifacts.shipped import shipped_path
 
     h = hashlib.sha256()
     with open(Path(shipped_path(policy)) / "model.safetensors", "rb") as f:

@@ -87,8 +87,8 @@ class _Runner:
 
     def learned(self, path: str):
         if path not in self._learned:
+            from lerobot_gcs_push.artifacts.shipped import shipped_path
             from lerobot_gcs_push.registration import SCENES
-            from lerobot_gcs_push.shipped import shipped_path
 
             # The env's task is its scene's: no env of the policy's obs_type need be made for it.
             self._learned[path] = LearnedPolicy(
@@ -111,7 +111,7 @@ class _Runner:
             if frames is not None:
                 frames.append(env.render())
 
-        from lerobot_gcs_push.rollout import rollout
+        from lerobot_gcs_push.episodes.rollout import rollout
 
         res = rollout(
             env,
@@ -208,7 +208,7 @@ def _run_all(cfg: EvaluateConfig, out: Path, jobs: list[dict], runs_path: Path) 
         bar.update(1)
         bar.set_postfix(success=f"{ok}/{bar.n}")
 
-    from lerobot_gcs_push.workers import open_pool
+    from lerobot_gcs_push.episodes.workers import open_pool
 
     try:
         with open_pool(

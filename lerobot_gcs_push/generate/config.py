@@ -7,6 +7,7 @@ import os
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
+from lerobot_gcs_push.episodes.workers import FanOut
 from lerobot_gcs_push.generate.hub import check_online
 from lerobot_gcs_push.generate.replay import ReplayActions
 from lerobot_gcs_push.planning.factory import EXPERT_DEFAULTS, REPLAY, ExpertConfig
@@ -14,7 +15,6 @@ from lerobot_gcs_push.registration import ENV_ID, SCENES
 from lerobot_gcs_push.scene import Disturbances, Scene, load_initial_conditions
 from lerobot_gcs_push.scene.options import StartsConfig
 from lerobot_gcs_push.settings import Shared, flat_options, flat_settings
-from lerobot_gcs_push.workers import FanOut
 
 EPISODES_META = "meta/gcs_push_episodes.jsonl"
 SETTINGS_META = "meta/gcs_push_settings.json"  # the settings a finished dataset was made with (see _finished)

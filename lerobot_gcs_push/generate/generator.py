@@ -59,7 +59,7 @@ class GenerateReport:
 def generate(cfg: GenerateConfig) -> GenerateReport:
     from lerobot.datasets.aggregate import aggregate_datasets  # noqa: F401  (imported here, not in the merge's time)
 
-    from lerobot_gcs_push.workers import open_pool
+    from lerobot_gcs_push.episodes.workers import open_pool
 
     scene = SCENES[cfg.starts.env_id]
     root = dataset_root(cfg)

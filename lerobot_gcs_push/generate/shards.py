@@ -102,7 +102,7 @@ def _crash_hook(index: int) -> None:
 
 
 def _run_episode(job: tuple[int, dict]) -> dict:
-    from lerobot_gcs_push.rollout import rollout
+    from lerobot_gcs_push.episodes.rollout import rollout
 
     index, ic = job
     env, expert, cfg = _WORKER["env"], _WORKER["expert"], _WORKER["cfg"]

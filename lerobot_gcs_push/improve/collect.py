@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_gcs_push.box_gcs import plannable
+from lerobot_gcs_push.episodes.workers import FanOut
 from lerobot_gcs_push.evaluation import GCS_POLICIES, read_runs
 from lerobot_gcs_push.evaluation.learned import PIXELS_OBS
 from lerobot_gcs_push.files import atomic_path
@@ -34,7 +35,6 @@ from lerobot_gcs_push.planning.factory import check_cost_to_go
 from lerobot_gcs_push.registration import ENV_ID, SCENES
 from lerobot_gcs_push.scene import Scene
 from lerobot_gcs_push.settings import flat_options
-from lerobot_gcs_push.workers import FanOut
 
 
 @flat_options

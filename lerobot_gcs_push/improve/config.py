@@ -8,10 +8,10 @@ import re
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from lerobot_gcs_push.checkpoints import is_pretrained_dir
+from lerobot_gcs_push.artifacts.checkpoints import is_pretrained_dir
+from lerobot_gcs_push.artifacts.shipped import shipped_path
+from lerobot_gcs_push.episodes.workers import FanOut
 from lerobot_gcs_push.registration import ENV_ID
-from lerobot_gcs_push.shipped import shipped_path
-from lerobot_gcs_push.workers import FanOut
 
 STAGES = ("rollouts", "collect", "merge", "finetune", "validation", "decision")
 
@@ -138,9 +138,9 @@ class ImproveConfig(FanOut):
     stop_after: str | None = None
 
     def __post_init__(self) -> None:
+        from lerobot_gcs_push.episodes.rollout import check_env_id
         from lerobot_gcs_push.evaluation import check_device
         from lerobot_gcs_push.registration import SCENES
-        from lerobot_gcs_push.rollout import check_env_id
         from lerobot_gcs_push.scene import check_sampler, check_seed
 
         scene = SCENES[check_env_id(self.env_id)]

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import functools
 
-from lerobot_gcs_push.checkpoints import export_policy, is_pretrained_dir
+from lerobot_gcs_push.artifacts.checkpoints import export_policy, is_pretrained_dir
 from lerobot_gcs_push.improve.config import STAGES, ImproveConfig
 from lerobot_gcs_push.improve.stages import Base, Collect, Decision, Finetune, Merge, Rollouts, Validation
 from lerobot_gcs_push.improve.workspace import Workspace

@@ -10,7 +10,7 @@ import shutil
 from dataclasses import asdict
 from pathlib import Path
 
-from lerobot_gcs_push.checkpoints import export_policy, is_pretrained_dir
+from lerobot_gcs_push.artifacts.checkpoints import export_policy, is_pretrained_dir
 from lerobot_gcs_push.improve.workspace import Stage, Workspace
 
 

@@ -19,7 +19,7 @@ import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from lerobot_gcs_push.checkpoints import STEP_FILE, export_policy, is_pretrained_dir
+from lerobot_gcs_push.artifacts.checkpoints import STEP_FILE, export_policy, is_pretrained_dir
 from lerobot_gcs_push.files import atomic_path
 
 

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
 
-from lerobot_gcs_push.checkpoints import export_policy
+from lerobot_gcs_push.artifacts.checkpoints import export_policy
 from lerobot_gcs_push.improve.config import _BEFORE_FIELDS, ImproveConfig, _canonical, _settings
 from lerobot_gcs_push.improve.state import STATE_FILE, State
 from lerobot_gcs_push.settings import changed, describe

@@ -30,11 +30,27 @@ def check_cost_to_go(env_id: str, needed_by: str = "") -> None:
         raise ValueError(f"no GCS cost-to-go for {env_id} yet{f' ({needed_by})' if needed_by else ''}")
 
 
+def _contact_planner(scene, method: str) -> Planner:
+    from lerobot_gcs_push.contact import ContactPlanner
+
+    return ContactPlanner(scene)
+
+
+# Each slider kind names its planner (`SliderKind.planner`); built here, above the planners, which read the
+# scene: over the box's modes (`box_gcs.GcsPlanner`, relaxation or MICP), or through contact for a slider that
+# turns (`contact.ContactPlanner`, the relaxation only).
+PLANNERS = {
+    "box_gcs": lambda scene, method: GcsPlanner(scene, method=method),
+    "contact": _contact_planner,
+}
+
+
 def make_planner(scene, method: str = "relaxation") -> Planner:
-    """The planner that serves the scene, its slider kind's: through contact for a slider that turns
-    (`contact.ContactPlanner`, relaxation only), over its modes for the box (`planner.GcsPlanner`, relaxation
-    or MICP)."""
-    return scene.kind.make_planner(scene, method)
+    """The planner that serves the scene: its slider kind's, with `method` if the kind accepts it."""
+    kind = scene.kind
+    if method not in kind.methods:
+        raise ValueError(f"a {kind.name} slider plans with the {' or '.join(kind.methods)} only, not {method!r}")
+    return PLANNERS[kind.planner](scene, method)
 
 
 def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=None):
@@ -45,7 +61,7 @@ def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=N
     if config.mode == REPLAY:
         raise ValueError("the replay expert runs recorded actions and plans nothing: it is generate's")
     kind = scene.kind
-    planner = planner or kind.make_planner(scene, config.method)
+    planner = planner or make_planner(scene, config.method)
     expert = PlanExpert(
         planner,
         fps,

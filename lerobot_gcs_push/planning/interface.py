@@ -3,15 +3,15 @@ one `Plan` out, one error when there is none. Which planner serves a scene is `f
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Protocol
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 if TYPE_CHECKING:
-    from lerobot_gcs_push.contact.fine import Correction
     from lerobot_gcs_push.planning.plan import Plan
-    from lerobot_gcs_push.scene import Scene
 
 
 class PlanningError(RuntimeError):
@@ -20,7 +20,8 @@ class PlanningError(RuntimeError):
 
 
 class Planner(Protocol):
-    scene: Scene
+    # The `scene.Scene` it plans in (not imported here: the scene's slider kinds import the planning layer).
+    scene: Any
 
     def plan(self, slider, finger, goal=None, /) -> Plan:
         """The plan from the slider (the box's [x, y], or [x, y, heading]) and the finger to the scene's
@@ -38,6 +39,25 @@ class Planner(Protocol):
 
     def warm_up(self) -> float:
         """Build what every plan needs now, so no query pays for it; the seconds it took."""
+
+
+@dataclass(frozen=True)
+class Correction:
+    """What a `Corrects` planner proposes, one push: where the finger touches (slider frame), how far, and
+    what the model predicts."""
+
+    face: int
+    lam: float
+    direction: np.ndarray  # body-frame unit displacement of the slider per unit push
+    amount: float  # slider travel (m)
+    error: float  # what is left: `distance(predicted end, goal)`, m + rad x r_max
+    poses: np.ndarray  # (PUSH_STEPS + 1, 3) the slider's poses along the push, world
+    fingers: np.ndarray  # (PUSH_STEPS + 1, 2) the finger's centre along the push, world
+    normal: np.ndarray  # the face's outward normal, slider frame
+
+    def normal_world(self, heading: float) -> np.ndarray:
+        c, s = math.cos(heading), math.sin(heading)
+        return np.array([c * self.normal[0] - s * self.normal[1], s * self.normal[0] + c * self.normal[1]])
 
 
 class Corrects(Planner, Protocol):

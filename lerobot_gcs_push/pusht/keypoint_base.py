@@ -19,7 +19,7 @@ def check_base(folder) -> Path:
     """`folder` if it is a LeRobot pretrained_model folder of a keypoint diffusion policy."""
     import json
 
-    from lerobot_gcs_push.checkpoints import is_pretrained_dir
+    from lerobot_gcs_push.artifacts.checkpoints import is_pretrained_dir
 
     folder = Path(folder)
     if not is_pretrained_dir(folder):

@@ -110,7 +110,7 @@ def policy_config(preset: str):
     import draccus
     from lerobot.policies.diffusion.configuration_diffusion import DiffusionConfig
 
-    from lerobot_gcs_push.shipped import shipped_path
+    from lerobot_gcs_push.artifacts.shipped import shipped_path
 
     path = Path(shipped_path(preset))  # the shipped preset where it is not under the working folder
     if not path.is_file():

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from lerobot_gcs_push.planning import Planner, Speeds
+    from lerobot_gcs_push.planning import Speeds
     from lerobot_gcs_push.planning.rules import ReplanRule
     from lerobot_gcs_push.scene import Scene
 
@@ -31,7 +31,10 @@ class SliderKind:
     pose_size = 2  # the planner's slider state: [x, y]; a slider that turns adds its heading
     state_names = ("box_x", "box_y")  # the slider's columns of a dataset's state, after the finger's
     trajectory_keys = ("finger", "box")  # what a run's saved trajectory holds, one row per step
-    methods = ("relaxation", "micp")  # the planner's methods it accepts
+    # Its planner, by name (`planning.factory.PLANNERS` builds it: the planners read the scene, so the scene
+    # names them and does not import them), and the methods it accepts.
+    planner = "box_gcs"
+    methods = ("relaxation", "micp")
     default_expert = "open-loop"  # the paper's: one plan, executed
     cost_to_go = True  # the box planner scores any state (regret, active data)
     hard_starts = True  # the hard samplers' families (`scene.HARD_SAMPLERS`) are drawn for it
@@ -109,12 +112,6 @@ class SliderKind:
     def final_text(self, final) -> str:
         return f"box ends at {final}"
 
-    # The expert.
-    def make_planner(self, scene: Scene, method: str = "relaxation") -> Planner:
-        from lerobot_gcs_push.box_gcs import GcsPlanner
-
-        return GcsPlanner(scene, method=method)
-
     # Its expert's settings live with the expert (`planning.rules`), which reads the scene.
     def speeds(self, commands: str = "position") -> Speeds:
         from lerobot_gcs_push.planning import Speeds
@@ -149,6 +146,7 @@ class TurningSlider(SliderKind):
     pose_size = 3
     state_names = ("slider_x", "slider_y", "slider_heading")
     trajectory_keys = ("finger", "box", "slider_pose")
+    planner = "contact"
     methods = ("relaxation",)
     # Replanned from the measured pose: its plans chain pushes, and a push may end elsewhere.
     default_expert = "closed-loop"
@@ -217,13 +215,6 @@ class TurningSlider(SliderKind):
 
     def final_text(self, final) -> str:
         return f"slider ends at {final} (x, y, heading)"
-
-    def make_planner(self, scene: Scene, method: str = "relaxation") -> Planner:
-        from lerobot_gcs_push.contact import ContactPlanner
-
-        if method not in self.methods:
-            raise ValueError(f"a rotating slider plans with the relaxation only, not {method!r}")
-        return ContactPlanner(scene)
 
     def speeds(self, commands: str = "position") -> Speeds:
         from lerobot_gcs_push.planning.rules import TURNING_SPEEDS

@@ -36,7 +36,7 @@ class StartsConfig(Shared):
     initial_conditions: str | None = None
 
     def __post_init__(self) -> None:
-        from lerobot_gcs_push.rollout import check_env_id
+        from lerobot_gcs_push.episodes.rollout import check_env_id
 
         check_env_id(self.env_id)
         if self.sampler is not None:

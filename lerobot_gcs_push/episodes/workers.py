@@ -40,7 +40,7 @@ class FanOut:
 
     # Worker processes (or Ray actors); the results do not depend on it (every job is seeded by itself).
     workers: int = 2
-    # process (worker processes here) or ray (Ray actors; see lerobot_gcs_push.workers).
+    # process (worker processes here) or ray (Ray actors; see lerobot_gcs_push.episodes.workers).
     backend: str = "process"
     # With backend ray: "auto" or "HOST:PORT" joins a running cluster; none starts Ray here.
     ray_address: str | None = None

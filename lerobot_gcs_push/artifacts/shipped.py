@@ -19,7 +19,7 @@ SHIPPED = ("policies", "configs")
 
 def roots() -> list[Path]:
     """Where shipped files are looked for: the checkout beside the package, then the wheel's data files."""
-    return [Path(__file__).resolve().parent.parent, Path(sys.prefix) / DATA_DIR]
+    return [Path(__file__).resolve().parents[2], Path(sys.prefix) / DATA_DIR]
 
 
 def shipped_path(path: str) -> str:
