@@ -4,6 +4,7 @@
 - `camera`: the top-down camera (intrinsics, render engine and lights, world <-> pixel mapping);
 - `collision`: finger-box distance queries on a render-free copy of the plant;
 - `push_sim`: `PushSim`, the controlled, disturbed, rendered diagram that composes them;
+- `spaces`: the env's action and observation spaces;
 - `env`: `GcsPushEnv`, the Gymnasium env over it (made by id through `registration`; not imported here).
 """
 

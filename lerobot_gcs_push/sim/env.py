@@ -9,7 +9,6 @@ from dataclasses import dataclass
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 
 from lerobot_gcs_push.registration import ENV_ID, SE2_ENV_ID, TEE_ENV_ID, register_envs  # noqa: F401  (re-exported)
 from lerobot_gcs_push.scene import (
@@ -23,6 +22,7 @@ from lerobot_gcs_push.scene import (
 )
 from lerobot_gcs_push.shapes import SliderShape
 from lerobot_gcs_push.sim import PushSim
+from lerobot_gcs_push.sim.spaces import action_space, observation_space
 
 OBS_TYPES = ("pixels_agent_pos", "environment_state_agent_pos", "state")
 
@@ -224,26 +224,8 @@ class GcsPushEnv(gym.Env):
         self._max_episode_steps = math.ceil(max_sim_time_s * fps - 1e-9)  # LeRobot's eval reads this
         self.metadata = {**self.metadata, "render_fps": fps}
 
-        lim = scene.finger_limit
-        self.action_space = spaces.Box(-lim, lim, shape=(2,), dtype=np.float64)
-        # The finger may overshoot a command at the limit by the PID's few millimetres, and the box may be
-        # pushed or knocked past its workspace: the view edge bounds the finger, nothing bounds the box.
-        agent = spaces.Box(-scene.view_half_width, scene.view_half_width, shape=(2,), dtype=np.float64)
-        if obs_type == "state":
-            high = np.array([scene.view_half_width] * 2 + [np.inf] * 2 + [math.pi] * (scene.kind.pose_size - 2))
-            self.observation_space = spaces.Box(-high, high, dtype=np.float64)
-        elif obs_type == "environment_state_agent_pos":
-            high = np.array([np.inf, np.inf, math.pi])
-            self.observation_space = spaces.Dict(
-                {"environment_state": spaces.Box(-high, high, dtype=np.float64), "agent_pos": agent}
-            )
-        else:
-            self.observation_space = spaces.Dict(
-                {
-                    "pixels": spaces.Box(0, 255, shape=(rows, cols, 3), dtype=np.uint8),
-                    "agent_pos": agent,
-                }
-            )
+        self.action_space = action_space(scene)
+        self.observation_space = observation_space(scene, obs_type)
         self._schedule: DisturbanceSchedule | None = None
         self._steps = 0
 
