@@ -16,19 +16,16 @@ from __future__ import annotations
 
 import numpy as np
 from pydrake.math import RigidTransform
-from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
-from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import StateInterpolatorWithDiscreteDerivative
 
 from lerobot_gcs_push.scene import Scene
-from lerobot_gcs_push.sim.camera import TopDownCamera, make_render_engine
+from lerobot_gcs_push.sim.camera import TopDownCamera
 from lerobot_gcs_push.sim.collision import CollisionQuery
-from lerobot_gcs_push.sim.plant import add_finger, add_scene_plant
+from lerobot_gcs_push.sim.controller import add_finger_controller
+from lerobot_gcs_push.sim.images import SimImages
+from lerobot_gcs_push.sim.plant import add_scene_plant
 
-_OBS_RENDERER = "vtk_obs"
-_RENDER_RENDERER = "vtk_render"
 # The diagram's exported inputs.
 _COMMAND_INPUT = "finger_command"  # the finger's commanded (x, y)
 _FORCE_INPUT = "applied_force"  # generalized forces on the plant's velocities
@@ -58,34 +55,13 @@ class PushSim:
         self._model = model
         self.plant = model.plant
 
-        # The controller sees only the finger: the box's dynamics are an unmodelled disturbance, as in
-        # the paper's setup.
-        control_plant = MultibodyPlant(time_step=0.0)
-        add_finger(control_plant, scene, collision=False, visual=False)
-        control_plant.Finalize()
-        self._control_plant = control_plant  # InverseDynamicsController keeps a reference
-        gains = [np.full(2, g) for g in (scene.kp, scene.ki, scene.kd)]
-        controller = builder.AddSystem(InverseDynamicsController(control_plant, *gains, False))
-        interpolator = builder.AddSystem(StateInterpolatorWithDiscreteDerivative(2, scene.time_step, True))
-        builder.Connect(interpolator.get_output_port(), controller.get_input_port_desired_state())
-        builder.Connect(
-            self.plant.get_state_output_port(model.finger_instance), controller.get_input_port_estimated_state()
-        )
-        builder.Connect(
-            controller.get_output_port_control(), self.plant.get_actuation_input_port(model.finger_instance)
-        )
-        builder.ExportInput(interpolator.get_input_port(), _COMMAND_INPUT)
+        # InverseDynamicsController keeps a reference to the control plant: keep it alive.
+        self._interpolator, self._controller, self._control_plant = add_finger_controller(builder, model, scene)
+        builder.ExportInput(self._interpolator.get_input_port(), _COMMAND_INPUT)
         builder.ExportInput(self.plant.get_applied_generalized_force_input_port(), _FORCE_INPUT)
 
-        self.camera = TopDownCamera(scene, self.image_size)
-        cameras = {_OBS_RENDERER: self.camera}
-        if self.render_size != self.image_size:  # separate engines: no window resizing between the two
-            cameras[_RENDER_RENDERER] = TopDownCamera(scene, self.render_size)
-        # The observation engine is in the model; the large one joins the context on the first
-        # `render_image`, since every engine's poses are updated at every plant step (~5% of a step each).
-        model.scene_graph.AddRenderer(_OBS_RENDERER, make_render_engine(scene))
-        self._scene_graph = model.scene_graph
-        self._sensors = {name: cam.add_sensor(builder, model.scene_graph, name) for name, cam in cameras.items()}
+        self._images = SimImages(builder, model.scene_graph, scene, self.image_size, self.render_size)
+        self.camera = self._images.camera
 
         self.diagram = builder.Build()
         self._simulator = Simulator(self.diagram)
@@ -94,10 +70,9 @@ class PushSim:
         ResetIntegratorFromFlags(self._simulator, "explicit_euler", scene.time_step)
         self._context = self._simulator.get_mutable_context()
         self._plant_context = self.plant.GetMyMutableContextFromRoot(self._context)
-        self._interp_context = interpolator.GetMyMutableContextFromRoot(self._context)
-        self._controller_context = controller.GetMyMutableContextFromRoot(self._context)
-        self._sensor_contexts = {n: s.GetMyContextFromRoot(self._context) for n, s in self._sensors.items()}
-        self._interpolator, self._controller = interpolator, controller
+        self._interp_context = self._interpolator.GetMyMutableContextFromRoot(self._context)
+        self._controller_context = self._controller.GetMyMutableContextFromRoot(self._context)
+        self._images.bind(self._context, self.plant, self._plant_context)
 
         # Fixed input values are rewritten in place (GetMutableData also invalidates dependents).
         self._command_port = self.diagram.GetInputPort(_COMMAND_INPUT).FixValue(self._context, np.zeros(2))
@@ -230,23 +205,11 @@ class PushSim:
 
     # --- images --------------------------------------------------------------------------------------
     def image(self) -> np.ndarray:
-        return self._render(_OBS_RENDERER)
+        return self._images.image()
 
     def render_image(self) -> np.ndarray:
         """The `render_size` image (for videos); the same view as `image`."""
-        if _RENDER_RENDERER not in self._sensors:
-            return self._render(_OBS_RENDERER)
-        sg_context = self._scene_graph.GetMyMutableContextFromRoot(self._context)
-        if not self._scene_graph.HasRenderer(sg_context, _RENDER_RENDERER):
-            self._scene_graph.AddRenderer(sg_context, _RENDER_RENDERER, make_render_engine(self.scene))
-            # A new engine learns the geometry poses at the next pose update: force one.
-            self.plant.SetPositions(self._plant_context, self.plant.GetPositions(self._plant_context))
-        return self._render(_RENDER_RENDERER)
-
-    def _render(self, name: str) -> np.ndarray:
-        rgba = self._sensors[name].color_image_output_port().Eval(self._sensor_contexts[name]).data
-        # Per-channel stacking copies 5x faster than the equivalent np.ascontiguousarray(rgba[..., :3]).
-        return np.dstack((rgba[..., 0], rgba[..., 1], rgba[..., 2]))
+        return self._images.render_image()
 
     def world_to_pixel(self, xy, z: float | None = None, size: tuple[int, int] | None = None) -> np.ndarray:
         """`TopDownCamera.world_to_pixel` in an image of `size` (default: the observation image)."""
