@@ -5,8 +5,8 @@ repeats them as literals. Defaults follow the paper's original system: a 1 m cub
 prismatic joints (the quasistatic model: a pushed box moves, an unpushed box stops), a 0.3 m sphere
 finger under a PID inverse-dynamics controller, a 0.01 s plant step, and a 500 s timeout.
 
-Beside it: its slider's kind (`kinds`), what the consumers ask instead of testing which slider it is, and
-where its episodes start (`starts`).
+Beside it: its slider's kind (`kinds`), what the consumers ask instead of testing which slider it is; where
+its episodes start (`starts`); and the checks of its fields and of the states given to it (`validation`).
 """
 
 from __future__ import annotations
@@ -30,11 +30,11 @@ from lerobot_gcs_push.scene.starts import (
     check_sampler,
     check_seed,
     episode_seed,
-    is_finite_number,
     load_initial_conditions,
     sample_initial_conditions,
 )
-from lerobot_gcs_push.shapes import PIVOTS, SliderShape, square, tee
+from lerobot_gcs_push.scene.validation import check_fields, is_finite_number, validate_start, validate_state
+from lerobot_gcs_push.shapes import SliderShape, square, tee
 
 if TYPE_CHECKING:
     from lerobot_gcs_push.pusht.frame import PixelFrame
@@ -131,35 +131,7 @@ class Scene:
     disturbances: Disturbances = field(default_factory=Disturbances)
 
     def __post_init__(self) -> None:
-        for name in (
-            "box_size",
-            "box_mass",
-            "box_damping",
-            "finger_radius",
-            "finger_mass",
-            "time_step",
-            "success_threshold",
-            "box_init_half_width",
-            "finger_init_half_width",
-        ):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"Scene.{name} must be positive, got {getattr(self, name)!r}")
-        if len(self.goal) != 2 or not all(math.isfinite(g) for g in self.goal):
-            raise ValueError(f"Scene.goal must be two finite numbers, got {self.goal!r}")
-        if np.max(np.abs(self.goal)) > self.box_limit:
-            raise ValueError(f"Scene.goal {self.goal} lies outside the box's region |x|,|y| <= {self.box_limit}")
-        if not math.isfinite(self.goal_heading):
-            raise ValueError(f"Scene.goal_heading must be finite, got {self.goal_heading!r}")
-        if not 0 < self.success_coverage <= 1:
-            raise ValueError(f"Scene.success_coverage must be in (0, 1], got {self.success_coverage!r}")
-        if self.slider_pivot not in PIVOTS:
-            raise ValueError(f"Scene.slider_pivot must be one of {PIVOTS}, got {self.slider_pivot!r}")
-        if self.limit_surface_radius is not None and not self.limit_surface_radius > 0:
-            raise ValueError(f"Scene.limit_surface_radius must be positive, got {self.limit_surface_radius!r}")
-        self.shape  # noqa: B018  (an unknown slider fails here, not at the first use)
-        if self.slider != "box" and not self.rotates:
-            # Only the box has the paper's convex simplification (and its filled goal square).
-            raise ValueError(f"Scene.slider {self.slider!r} must rotate: set rotates=True")
+        check_fields(self)
 
     # Derived quantities: computed here once so that no module re-derives them differently.
     @property
@@ -287,45 +259,14 @@ class Scene:
         box_limit: float | None = None,
         allow_overlap: bool = False,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Return (box, finger) as arrays, or raise a ValueError that names the violation. `heading` is the
-        slider's (radians; only a rotating slider may have one other than 0). `allow_overlap`: a finger
-        inside the slider is a valid start (gym-pusht's resets draw such starts)."""
-        box = _vector2(box, f"{what}: box")
-        finger = _vector2(finger, f"{what}: finger")
-        if not is_finite_number(heading):
-            raise ValueError(f"{what}: heading must be a finite number of radians, got {heading!r}")
-        if self.kind.refuses_heading(heading):
-            raise ValueError(f"{what}: heading {heading} given, but this scene's slider cannot rotate")
-        box_limit = self.box_limit if box_limit is None else box_limit
-        if np.max(np.abs(box)) > box_limit + 1e-9:
-            raise ValueError(f"{what}: box {box.tolist()} lies outside the box workspace |x|,|y| <= {box_limit}")
-        if np.max(np.abs(finger)) > self.finger_limit + 1e-9:
-            raise ValueError(
-                f"{what}: finger {finger.tolist()} lies outside the finger workspace |x|,|y| <= {self.finger_limit}"
-            )
-        gap = self.finger_box_gap(box, finger, float(heading))
-        # Touching counts as valid, whatever the rounding of box - contact distance.
-        if gap < -1e-9 and not allow_overlap:
-            raise ValueError(
-                f"{what}: finger {finger.tolist()} overlaps the box {box.tolist()} (penetration {-gap:.3f} m)"
-            )
-        return box, finger
+        """`validation.validate_state`: (box, finger) as arrays, or a ValueError that names the violation."""
+        return validate_state(
+            self, box, finger, heading=heading, what=what, box_limit=box_limit, allow_overlap=allow_overlap
+        )
 
     def validate_start(self, ic: dict, what: str) -> tuple[np.ndarray, np.ndarray]:
-        """`validate_state` of an initial condition's entry (`load_initial_conditions`). gym-pusht's own
-        resets may put the agent inside the T, so a scene with a pixel frame lets the finger overlap; its
-        agent is checked in the px it was given."""
-        if self.kind.pixel_starts and "pusht_state" in ic:
-            (u, v), limit = ic["pusht_state"][:2], self.finger_limit
-            lo, hi = self.frame.to_px([-limit, limit]), self.frame.to_px([limit, -limit])  # y flips
-            if not (lo[0] <= u <= hi[0] and lo[1] <= v <= hi[1]):
-                raise ValueError(
-                    f"{what}: pusht_state's agent ({u:g}, {v:g}) px lies outside the planner's workspace "
-                    f"[{lo[0]:.0f}, {hi[0]:.0f}] px on both axes"
-                )
-        return self.validate_state(
-            ic["box"], ic["finger"], heading=ic.get("heading", 0.0), what=what, allow_overlap=self.kind.pixel_starts
-        )
+        """`validation.validate_start`: `validate_state` of an initial condition's entry."""
+        return validate_start(self, ic, what)
 
     def box_goal_distance(self, box) -> float:
         return float(np.linalg.norm(np.asarray(box, float) - self.goal_array))
@@ -334,12 +275,3 @@ class Scene:
 def wrap_angle(angle: float) -> float:
     """The angle in [-pi, pi)."""
     return float((angle + math.pi) % (2 * math.pi) - math.pi)
-
-
-def _vector2(value, what: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=float)
-    if arr.shape != (2,):
-        raise ValueError(f"{what} must be a pair [x, y], got {value!r}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{what} must be finite, got {arr.tolist()}")
-    return arr

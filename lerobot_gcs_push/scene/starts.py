@@ -10,17 +10,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from lerobot_gcs_push.scene.validation import is_finite_number
 from lerobot_gcs_push.settings import check_choice
 
 if TYPE_CHECKING:
     from lerobot_gcs_push.scene import Scene
-
-
-def is_finite_number(value) -> bool:
-    try:
-        return math.isfinite(float(value))
-    except (TypeError, ValueError):
-        return False
 
 
 SAMPLERS = ("sobol", "uniform", "hard", "hard_v2")
