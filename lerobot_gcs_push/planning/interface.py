@@ -62,7 +62,7 @@ class Correction:
 
 class Corrects(Planner, Protocol):
     """A planner that also proposes single corrective pushes (`contact.ContactPlanner`): what the expert
-    asks of it within its `fine_within` of the goal (`PlanExpert._fine_plan`). A planner without them is
+    asks of it within its `fine_within` of the goal (`search.fine_plan`). A planner without them is
     run with `fine_within` 0, as every slider kind's `fine_within` gives for the box."""
 
     def corrections(self, slider, goal=None, /) -> Sequence[Correction]:
