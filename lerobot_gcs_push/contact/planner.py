@@ -15,14 +15,14 @@ import time
 import cvxpy as cp
 import numpy as np
 
-from lerobot_gcs_push.contact.face_contact import finger_body
 from lerobot_gcs_push.contact.fine import Correction, corrections
-from lerobot_gcs_push.contact.graph import START, build_graph
+from lerobot_gcs_push.contact.graph import build_graph
 from lerobot_gcs_push.contact.model import HeadingWindow, PushModel
-from lerobot_gcs_push.contact.non_collision import free_regions, knots_of
+from lerobot_gcs_push.contact.non_collision import free_regions
+from lerobot_gcs_push.contact.query import check_query, plannable_state
 from lerobot_gcs_push.contact.relaxation import GraphRelaxation, contact_forms
-from lerobot_gcs_push.contact.rounding import Path, ranked_paths, round_relaxation, solve_restriction
-from lerobot_gcs_push.contact.trace import trace
+from lerobot_gcs_push.contact.restrict import baseline_plan, plan_of, restrict, round_paths
+from lerobot_gcs_push.contact.rounding import Path, Restriction
 from lerobot_gcs_push.planning import Plan, PlanningError
 from lerobot_gcs_push.scene import Scene, wrap_angle
 
@@ -136,50 +136,17 @@ class ContactPlanner:
     def query(self, slider_pose, finger, goal=None):
         """(start pose, finger in the slider frame, goal pose, which free pieces hold the finger). `goal`
         (x, y, heading) in the scene goal's place: a waypoint (its heading taken as given)."""
-        pose, finger = np.asarray(slider_pose, float), np.asarray(finger, float)
-        if pose.shape != (3,) or not np.all(np.isfinite(pose)):
-            raise ValueError(f"slider pose must be three finite numbers [x, y, heading], got {pose.tolist()}")
-        if finger.shape != (2,) or not np.all(np.isfinite(finger)):
-            raise ValueError(f"finger must be two finite numbers [x, y], got {finger.tolist()}")
-        if np.max(np.abs(pose[:2])) > self.model.reach + 1e-9:
-            # A PlanningError, not a ValueError: a closed-loop expert meets sliders knocked out of reach.
-            raise PlanningError(
-                f"slider centre {pose[:2].tolist()} lies outside the workspace |x|,|y| <= {self.model.reach}"
-            )
-        c, s = np.cos(pose[2]), np.sin(pose[2])
-        d = finger - pose[:2]
-        q = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
-        allow = np.array([reg.contains(q) for reg in self.regions], float)
-        if not allow.any():
-            raise ValueError(
-                f"finger {finger.tolist()} lies in none of the free-space pieces around the slider at "
-                f"{pose.tolist()} (too close to it, or beyond the finger's reach)"
-            )
-        if goal is None:
-            goal = self.goal_of(pose)
-        else:
-            goal = np.asarray(goal, float)
-            if goal.shape != (3,) or not np.all(np.isfinite(goal)) or np.max(np.abs(goal[:2])) > self.model.reach:
-                raise ValueError(f"goal must be [x, y, heading] within the workspace, got {goal.tolist()}")
-        return pose, q, goal, allow
+        pose, q, goal, allow = check_query(self.model, self.regions, slider_pose, finger, goal)
+        return pose, q, self.goal_of(pose) if goal is None else goal, allow
 
     def goal_of(self, slider_pose) -> np.ndarray:
         """The goal pose a plan from `slider_pose` ends at: the shape's symmetric copy nearest its heading."""
         return np.array([*self.model.goal[:2], self.model.goal_heading_near(float(slider_pose[2]))])
 
     def plannable(self, slider_pose, finger, clearance: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
-        """A measured state the planner accepts: the slider's centre within its reach, the finger `clearance`
-        inside the nearest free-space piece (in contact, or off a corner where no piece reaches, it is not)."""
-        model = self.model
-        pose = np.asarray(slider_pose, float).copy()
-        pose[:2] = np.clip(pose[:2], -model.reach, model.reach)
-        c, s = np.cos(pose[2]), np.sin(pose[2])
-        d = np.asarray(finger, float) - pose[:2]
-        q = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
-        if any(r.contains(q) for r in self.regions):
-            return pose, np.asarray(finger, float).copy()
-        q = min((r.project(q, clearance) for r in self.regions), key=lambda p: float(np.linalg.norm(p - q)))
-        return pose, pose[:2] + np.array([c * q[0] - s * q[1], s * q[0] + c * q[1]])
+        """`query.plannable_state`: the nearest measured state the planner accepts, the finger `clearance` inside
+        a free-space piece."""
+        return plannable_state(self.model, self.regions, slider_pose, finger, clearance)
 
     def distance(self, a, b) -> float:
         """How far apart two slider poses are: metres plus radians times the slider's radius."""
@@ -215,46 +182,13 @@ class ContactPlanner:
         except cp.error.SolverError as err:
             raise PlanningError(f"the relaxation failed: {err}") from None
         t1 = time.perf_counter()
-        best, tried = round_relaxation(
-            self.model,
-            self.graph,
-            self.regions,
-            self.rounding_forms,
-            res,
-            self.knots,
-            self.per_region,
-            pose,
-            q,
-            goal,
-            self.candidates,
-            np.random.default_rng(self.seed),
-            window,
-        )
-        fallback = best is None
-        # SNOPT from the straight-line guess finds another local optimum of the same path: tried on the best
-        # sampled path (then on the paths of most flow) when line_guesses > 0. Off by default: on the bench's
-        # 20 rotating-box starts, run side by side twice, it lowered the median gap 0.0874 -> 0.0851 for 55-65
-        # ms of rounding (+20-28 % a plan). If every sampled path failed (the relaxation's values can mislead
-        # SNOPT at the motion cone's edge), the paths of most flow from that guess, until one solves.
-        if fallback:
-            retry = ranked_paths(self.graph, res, allow)[: self.fallback_paths]
-        elif self.line_guesses > 1:  # every path enumerated only when more than the best is asked for
-            ranked = ranked_paths(self.graph, res, allow)
-            retry = ([best.path] + [p for p in ranked if p != best.path])[: self.line_guesses]
-        else:
-            retry = [best.path][: self.line_guesses]  # [] when off
-        for path in retry:
-            r = self._restrict(path, pose, q, goal, window)
-            tried += 1
-            if r.success and (best is None or r.cost < best.cost):
-                best = r
-            if fallback and best is not None:
-                break
+        best, tried, fallback = round_paths(self, res, pose, q, goal, allow, window)
         t2 = time.perf_counter()
         if best is None:
             bound = "uncertified" if res.bound is None else f"{res.bound:.4f}"
             raise PlanningError(f"no sampled path's restriction solved ({tried} tried, bound {bound})")
-        return self._plan(
+        return plan_of(
+            self,
             "relaxation",
             best,
             pose,
@@ -277,98 +211,8 @@ class ContactPlanner:
         looks away from the goal, reached by the shortest route, SNOPT from a straight-line guess. (One
         push once sufficed; as the slider turns the round finger's contact rolls toward the face's middle,
         so one push rarely reaches the goal's heading.)"""
-        pose, q, goal, allow = self.query(slider_pose, finger)
-        t0 = time.perf_counter()
-        c, s = np.cos(pose[2]), np.sin(pose[2])
-        u = goal[:2] - pose[:2]
-        u = np.array([c * u[0] + s * u[1], -s * u[0] + c * u[1]])
-        face = int(np.argmax([-(f.n @ u) for f in self.model.faces]))
-        graph = self.baseline_graph
-        options = [k for k, v in enumerate(graph.frees) if v.layer == START and allow[v.source] and v.target == face]
-        start_free = min(options, key=lambda k: len(graph.frees[k].route))
-        again = [
-            min(
-                (k for k, v in enumerate(graph.frees) if v.layer == layer and v.source == face and v.target == face),
-                key=lambda k: len(graph.frees[k].route),
-            )
-            for layer in range(self.layers - 1)
-        ]
-        path = Path((start_free, *again), tuple(graph.contact_index(layer, face) for layer in range(self.layers)))
-        r = self._restrict(path, pose, q, goal, self.window(pose, goal), graph, self.baseline_forms)
-        dt = time.perf_counter() - t0
-        if not r.success:
-            raise PlanningError("the baseline's SNOPT run found no feasible plan")
-        return self._plan("baseline", r, pose, goal, None, dt, 1, {}, graph)
+        return baseline_plan(self, slider_pose, finger)
 
-    def _restrict(self, path: Path, pose, q, goal, window, graph=None, forms=None, guess=None):
-        """The path's restriction, SNOPT from `guess` (contact modes' values, free modes' points: the
-        straight-line guess by default), on the planner's graph by default."""
-        graph = graph or self.graph
-        guess_c, guess_q = guess or self._straight_line_guess(graph, path, pose, q, goal)
-        return solve_restriction(
-            self.model,
-            graph,
-            self.regions,
-            forms or self.rounding_forms,
-            path,
-            self.knots,
-            self.per_region,
-            pose,
-            q,
-            goal,
-            guess_c,
-            guess_q,
-            window,
-        )
-
-    def _straight_line_guess(self, graph, path: Path, pose, q, goal):
-        """Poses interpolated from start to goal over the path's contact knots, each push mid-face, the
-        finger straight from where it is to the next contact point (penetrating, if it must: SNOPT fixes it)."""
-        n_c = len(path.contacts)
-        w = np.linspace(0.0, 1.0, n_c * (self.knots - 1) + 1)
-        traj = np.array([pose[i] + w * (goal[i] - pose[i]) for i in range(3)]).T
-        contacts, frees, finger = [], [], np.asarray(q, float)
-        for m, (fi, ci) in enumerate(zip(path.frees, path.contacts)):
-            face = self.model.faces[graph.contacts[ci].face]
-            seg = traj[m * (self.knots - 1) : (m + 1) * (self.knots - 1) + 1]
-            fn, ft = [], []
-            for k in range(self.knots - 1):
-                dw = seg[k + 1, :2] - seg[k, :2]
-                ck, sk = np.cos(seg[k, 2]), np.sin(seg[k, 2])
-                db = np.array([ck * dw[0] + sk * dw[1], -sk * dw[0] + ck * dw[1]])
-                fn.append(-(face.n @ db))
-                ft.append(face.t @ db)
-            contacts.append(
-                {
-                    "lam": 0.5,
-                    "c": np.cos(seg[:, 2]),
-                    "s": np.sin(seg[:, 2]),
-                    "fn": np.array(fn),
-                    "ft": np.array(ft),
-                    "x": seg[:, 0],
-                    "y": seg[:, 1],
-                }
-            )
-            n_q = knots_of(graph.frees[fi].route, self.per_region)
-            end = finger_body(face, self.model, 0.5)
-            frees.append(finger[None, :] + np.linspace(0, 1, n_q)[:, None] * (end - finger)[None, :])
-            finger = end
-        return contacts, frees
-
-    def _plan(self, method, r, pose, goal, bound, dt, tried, extra, graph=None) -> Plan:
-        poses, fingers, kinds, modes, pushes = trace(self.model, graph or self.graph, r, pose)
-        return Plan(
-            method=method,
-            cost=r.cost,
-            lower_bound=bound,
-            solve_time_s=dt,
-            modes=modes,
-            slider_poses=poses,
-            finger_path=fingers,
-            segment_kinds=kinds,
-            goal=goal,
-            pushes=pushes,
-            free_knots=list(r.frees),
-            candidates=tried,
-            extra=extra,
-        )
+    def _restrict(self, path: Path, pose, q, goal, window, graph=None, forms=None, guess=None) -> Restriction:
+        """`restrict.restrict`: the path's restriction, SNOPT from `guess` (the straight-line guess by default)."""
+        return restrict(self, path, pose, q, goal, window, graph, forms, guess)
