@@ -4,7 +4,7 @@
     stats = run(n=40, seed=0)   # a flat dict of floats; prints nothing
 
 One-time costs (a fresh planner: the graph and the relaxation's conic data; the MICP's conic data) are
-reported apart from per-query times; nothing compiles per query (tests/test_planner_conic.py).
+reported apart from per-query times; nothing compiles per query (tests/test_box_gcs_conic.py).
 Per query, the three solvers run in the same loop,
 in an order that rotates from one query to the next, so machine noise hits all of them alike:
 

@@ -42,8 +42,8 @@ def test_the_box_planner_returns_the_one_plan_type():
     assert plan.gap < 0.1, plan.gap
     assert plan.slider_poses.shape == (len(plan.segment_kinds) + 1, 2) == (len(plan.finger_path), 2)
     np.testing.assert_allclose(plan.slider_final, BOX.goal_array, atol=1e-5)
-    # Its solver failures are PlanningError too (test_planner.py), as the planner through contact's are
-    # (test_contact_planner.py); the expert holds the finger where there is no plan (test_contact_expert.py).
+    # Its solver failures are PlanningError too (test_box_gcs_planner.py), as the planner through contact's are
+    # (test_contact_planner.py); the expert holds the finger where there is no plan (test_expert_turning.py).
 
 
 def straight_push(length=1.0) -> Plan:

@@ -92,7 +92,7 @@ def test_regret_refuses_a_rotating_env_by_name_and_the_experts_do_not(env_id):
     # Regret defaults on where the env has a cost-to-go, off where it has none.
     assert EvaluateConfig(env_id=env_id, policies=[str(POLICY)]).regret is False
     assert EvaluateConfig(policies=[str(POLICY)]).regret is True
-    for policy in ("gcs-open-loop", "gcs-closed-loop"):  # the experts plan through contact (test_contact_expert.py)
+    for policy in ("gcs-open-loop", "gcs-closed-loop"):  # the experts plan through contact (test_expert_turning.py)
         assert EvaluateConfig(env_id=env_id, policies=[policy]).regret is False
     # Demonstrations of a rotating slider default to the closed-loop expert and plan with the relaxation only.
     assert GenerateConfig(env_id=env_id).expert.mode == "closed-loop" and GenerateConfig().expert.mode == "open-loop"

@@ -7,7 +7,7 @@ A query sets theta = [source, goal, allowed] in the relaxation's conic data (con
 * a path's restriction is the relaxation with y fixed to the path's indicator and every other edge
   dropped: flow conservation then carries y = 1 along the path, and each copy of a path vertex's point
   equals the point (the perspective of a bounded set at y = 0 is {0}). Its optimum is the restriction's
-  (restriction.py writes it directly; tests/test_planner_conic.py checks both agree), and no path needs
+  (restriction.py writes it directly; tests/test_box_gcs_conic.py checks both agree), and no path needs
   a program of its own, so nothing compiles per path.
 """
 

@@ -14,7 +14,7 @@ on this graph (20 instances: median gap 5.97% with and without) and add 60% to C
 relaxation leaves them out; but they are valid cuts that SCIP uses well: MICP median 0.44 s with them
 against 1.14 s without (p95 0.75 s against 4.1 s, 16 instances, same optima), so the MICP keeps them.
 The remaining gap comes from the finger's route splitting around both sides of the box; randomized
-rounding recovers the optimum (tests/test_planner.py).
+rounding recovers the optimum (tests/test_box_gcs_planner.py).
 
 The graph is fixed, so the initial state, the goal and the edge bounds are cvxpy Parameters and the
 program is compiled once (DPP); a new query is only a solver call.

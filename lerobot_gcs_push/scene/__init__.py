@@ -249,20 +249,10 @@ class Scene:
         """heading - goal_heading, wrapped to [-pi, pi)."""
         return wrap_angle(heading - self.goal_heading)
 
-    def validate_state(
-        self,
-        box,
-        finger,
-        *,
-        heading: float = 0.0,
-        what: str = "initial condition",
-        box_limit: float | None = None,
-        allow_overlap: bool = False,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """`validation.validate_state`: (box, finger) as arrays, or a ValueError that names the violation."""
-        return validate_state(
-            self, box, finger, heading=heading, what=what, box_limit=box_limit, allow_overlap=allow_overlap
-        )
+    def validate_state(self, box, finger, **options) -> tuple[np.ndarray, np.ndarray]:
+        """`validation.validate_state` (its keyword options: heading, what, box_limit, allow_overlap): (box,
+        finger) as arrays, or a ValueError that names the violation."""
+        return validate_state(self, box, finger, **options)
 
     def validate_start(self, ic: dict, what: str) -> tuple[np.ndarray, np.ndarray]:
         """`validation.validate_start`: `validate_state` of an initial condition's entry."""

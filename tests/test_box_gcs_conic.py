@@ -18,7 +18,7 @@ from lerobot_gcs_push.conic.solve import solve
 from lerobot_gcs_push.scene import Scene, sample_initial_conditions
 
 SCENE = Scene()
-REFERENCE = json.loads((Path(__file__).parent / "test_planner_reference_costs.json").read_text())
+REFERENCE = json.loads((Path(__file__).parent / "test_box_gcs_reference_costs.json").read_text())
 
 
 @pytest.fixture(scope="module")

@@ -1,5 +1,6 @@
-"""The planner through contact as the rotating envs' expert: measured states made plannable, the closed-loop
-expert's episodes in the sim, and its demonstrations, whose actions replayed in a fresh env succeed."""
+"""The one expert (`planning.expert.PlanExpert`) on sliders that turn, planning through contact: measured
+states made plannable, the closed-loop expert's episodes in the sim, and its demonstrations, whose actions
+replayed in a fresh env succeed."""
 
 from __future__ import annotations
 
