@@ -41,6 +41,7 @@ class Pool:
     lists: list
     episodes: int = 1000
     label_shift: int = 0
+    hold_frames: int = 0
 
 
 POOLS = {
@@ -52,6 +53,9 @@ POOLS = {
     # (v1's one-frame-early windows were shift 1).
     "position_shift1": Pool(POSITION, label_shift=1),
     "position_shift2": Pool(POSITION, label_shift=2),
+    # The same demonstrations, each followed by 10 frames in which the agent is held where it was at the
+    # success: what stopping at the goal looks like (the v2 policy's rollouts push the T past it).
+    "position_hold10": Pool(POSITION, hold_frames=10),
     # Aggregated as DAgger does: the position pool and takeover round 1's 350 demonstrations from the v2
     # position policy's stall states (`experiments/pusht/takeover/round.sh`).
     "position_takeover1": Pool([*POSITION, DEMOS / "takeover" / "r1.json"], episodes=1350),
@@ -81,7 +85,8 @@ def train_config(pool: str, steps: int = STEPS, episodes: int | None = None, wor
     raw = json.loads(CONFIG.read_text())
     spec = POOLS[pool]
     raw["data"] |= {"lists": [str(p) for p in spec.lists], "episodes": episodes or spec.episodes,
-                    "cache_dir": str(REPO / "outputs" / "keypoints"), "label_shift": spec.label_shift}  # fmt: skip
+                    "cache_dir": str(REPO / "outputs" / "keypoints"), "label_shift": spec.label_shift,
+                    "hold_frames": spec.hold_frames}  # fmt: skip
     raw["schedule"] |= {"steps": steps, "batch_size": BATCH}
     raw |= {"preset": str(REPO / raw["preset"]), "output_dir": str(work / "train"),
             "partial_dir": str(folder(pool) / "partial"), "seed": SEED}  # fmt: skip
@@ -127,6 +132,7 @@ def run(pool: str = DEFAULT_POOL, stage_minutes: float | None = None, steps: int
         "lists": [str(p.relative_to(REPO)) for p in POOLS[pool].lists],
         "episodes": cfg.data.episodes,
         "label_shift": cfg.data.label_shift,
+        "hold_frames": cfg.data.hold_frames,
         "steps": steps,
         "batch_size": BATCH,
         "samples": steps * BATCH,

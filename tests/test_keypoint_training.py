@@ -248,3 +248,27 @@ def test_labels_taken_later_stay_within_their_episode():
     np.testing.assert_array_equal(ahead.arrays["observation.state"], arrays["observation.state"])
     with pytest.raises(ValueError, match="later, not earlier"):
         data.labels_ahead(-1)
+
+
+def test_held_frames_after_success_bring_the_agent_to_rest_where_it_was():
+    """Replayed with frames held after success, each episode is longer by exactly those frames, their
+    command is the agent's position at the success, and in gym-pusht's own physics (critically damped PD)
+    the agent comes to rest there within the second held."""
+    demos = keypoint_data.read_lists([LIST], 2)
+    plain = keypoint_data.replay(demos, progress=False)
+    held = keypoint_data.replay(demos, progress=False, hold_frames=10)
+    assert np.diff(np.concatenate([[0], held.ends])).tolist() == [
+        e + 10 for e in np.diff(np.concatenate([[0], plain.ends]))
+    ]
+    for s_plain, e_plain, e_held in zip(plain.starts(), plain.ends, held.ends):
+        s_held = e_held - (e_plain - s_plain) - 10
+        for key in keypoint_data.KEYS:  # the demonstration itself is unchanged
+            np.testing.assert_array_equal(
+                held.arrays[key][s_held : s_held + e_plain - s_plain], plain.arrays[key][s_plain:e_plain]
+            )
+        tail_action = held.arrays["action"][e_held - 10 : e_held]
+        agent = held.arrays["observation.state"][e_held - 10 : e_held]
+        np.testing.assert_array_equal(tail_action, np.repeat(agent[:1], 10, axis=0))  # held where it was
+        assert np.linalg.norm(agent[-1] - agent[0]) < 1.0 and np.linalg.norm(agent[-1] - agent[-2]) < 0.1
+    with pytest.raises(ValueError, match="hold_frames must be >= 0"):
+        keypoint_data.load([LIST], 2, None, False, hold_frames=-1)

@@ -72,8 +72,10 @@ def read_lists(paths, episodes: int | None = None) -> list[dict]:
     return demos
 
 
-def replay(demos: list[dict], progress: bool = True) -> Episodes:
-    """Each demonstration run in gym-pusht from its start, its observations recorded before each action."""
+def replay(demos: list[dict], progress: bool = True, hold_frames: int = 0) -> Episodes:
+    """Each demonstration run in gym-pusht from its start, its observations recorded before each action.
+    `hold_frames`: after its success, so many frames more in which the agent is held where it was then (the
+    command is its position): a demonstration that ends at the threshold shows nothing of stopping there."""
     import gym_pusht  # noqa: F401  (registers the env)
     import gymnasium as gym
     from tqdm.auto import tqdm
@@ -100,20 +102,29 @@ def replay(demos: list[dict], progress: bool = True) -> Episodes:
             success = bool(info["is_success"])
         if not success:
             raise ValueError(f"demonstration {k} did not end at its success on replay: not this gym-pusht's list")
+        hold = np.asarray(obs["agent_pos"], np.float32)
+        for _ in range(hold_frames):
+            out[STATE].append(np.asarray(obs["agent_pos"], np.float32))
+            out[ENV_STATE].append(np.asarray(obs["environment_state"], np.float32))
+            out[ACTION].append(hold)
+            obs, *_ = env.step(hold.astype(np.float64))
         ends.append(len(out[ACTION]))
     env.close()
     return Episodes({k: np.stack(v) for k, v in out.items()}, np.array(ends, np.int64))
 
 
-def load(paths, episodes: int | None = None, cache_dir=None, progress: bool = True) -> Episodes:
+def load(paths, episodes: int | None = None, cache_dir=None, progress: bool = True, hold_frames: int = 0) -> Episodes:
     """`replay` of the lists, kept in `cache_dir` under the hash of what was replayed (a rebuild is minutes)."""
+    if hold_frames < 0:
+        raise ValueError(f"hold_frames must be >= 0, got {hold_frames}")
     demos = read_lists(paths, episodes)
     key = hashlib.sha256((REPLAY_VERSION + json.dumps(demos, sort_keys=True)).encode()).hexdigest()[:16]
+    key += f"_hold{hold_frames}" if hold_frames else ""
     cached = Path(cache_dir) / f"keypoints_{key}.npz" if cache_dir else None
     if cached is not None and cached.is_file():
         with np.load(cached) as z:
             return Episodes({k: z[k] for k in KEYS}, z["ends"])
-    data = replay(demos, progress)
+    data = replay(demos, progress, hold_frames)
     if cached is not None:
         cached.parent.mkdir(parents=True, exist_ok=True)
         tmp = cached.with_suffix(".tmp.npz")

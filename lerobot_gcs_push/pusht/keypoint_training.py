@@ -47,6 +47,9 @@ class KeypointDataConfig:
     # Learn each frame's command this many frames later (the episode's last past its end): a proxy for
     # commands that lead further, measured without planning the pool again.
     label_shift: int = 0
+    # Frames after each demonstration's success in which the agent is held where it was (`keypoint_data.replay`):
+    # what stopping at the goal looks like, which a demonstration that ends at the threshold does not show.
+    hold_frames: int = 0
 
 
 @dataclass
@@ -87,8 +90,9 @@ class TrainKeypointsConfig:
     def __post_init__(self) -> None:
         if not self.data.lists:
             raise ValueError("data.lists is empty: give the replay lists to train on")
-        if self.data.label_shift < 0:
-            raise ValueError(f"data.label_shift must be >= 0, got {self.data.label_shift}")
+        for name in ("label_shift", "hold_frames"):
+            if getattr(self.data, name) < 0:
+                raise ValueError(f"data.{name} must be >= 0, got {getattr(self.data, name)}")
         if self.threads < 1:
             raise ValueError(f"threads must be >= 1, got {self.threads}")
         for name in ("steps", "batch_size", "warmup_steps"):
@@ -199,7 +203,7 @@ def prepare(cfg: TrainKeypointsConfig, progress: bool = True) -> Start:
 
         pcfg = base_config(cfg.init_from)
     pcfg.device = "cpu" if pcfg.device in (None, "cuda") and not torch.cuda.is_available() else pcfg.device
-    data = keypoint_data.load(cfg.data.lists, cfg.data.episodes, cfg.data.cache_dir, progress)
+    data = keypoint_data.load(cfg.data.lists, cfg.data.episodes, cfg.data.cache_dir, progress, cfg.data.hold_frames)
     data = data.labels_ahead(cfg.data.label_shift)
     if cfg.init_from is None:
         stats = stats_of(data)
