@@ -12,7 +12,7 @@ import json
 import os
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 from lerobot_gcs_push.artifacts.shipped import shipped_path
 from lerobot_gcs_push.episodes.workers import FanOut
@@ -21,13 +21,14 @@ from lerobot_gcs_push.generate import GenerateConfig
 from lerobot_gcs_push.improve import ImproveConfig
 from lerobot_gcs_push.improve.collect import CollectConfig
 from lerobot_gcs_push.pusht.keypoint_training import TrainKeypointsConfig
-from lerobot_gcs_push.registration import ENV_ID
 from lerobot_gcs_push.scene import is_finite_number, load_initial_conditions
-from lerobot_gcs_push.settings import flat_argv
+from lerobot_gcs_push.scene.options import StartsConfig
+from lerobot_gcs_push.settings import flat_argv, flat_options
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")  # nothing here may reach the network unless asked to
 
 
+@flat_options
 @dataclass
 class PlanConfig:
     # Box centre [x, y] in metres (with `finger`; or give `initial_conditions`).
@@ -36,35 +37,51 @@ class PlanConfig:
     finger: tuple[float, float] | None = None
     # Goal [x, y] for the box centre; default: the scene's goal.
     goal: tuple[float, float] | None = None
-    # A JSON list of {"box": [x, y], "finger": [x, y]} to plan in file order.
-    initial_conditions: str | None = None
-    # relaxation (convex relaxation + rounding, ~10 ms) or micp (exact, SCIP).
+    # The task and its starts: --env_id (GcsPushBox-v0, GCS over the box's modes, or a rotating slider,
+    # GcsPushBoxSE2-v0 or GcsPushT-v0, planned through contact: lerobot_gcs_push/contact/, work in progress,
+    # issue 32) and --initial_conditions (a JSON list of {"box": [x, y], "finger": [x, y]}, planned in file
+    # order); `--starts.env_id` works too. Plan samples nothing and runs no env: no --sampler, --seed or
+    # --disturbances.
+    starts: StartsConfig = field(default_factory=StartsConfig)
+    # relaxation (convex relaxation + rounding, ~10 ms) or micp (exact, SCIP): the planner's own, as the
+    # expert's --method is its planner's.
     method: str = "relaxation"
     # Print one JSON object per plan (one per line) instead of a summary.
     jsonl: bool = False
-    # The task: GcsPushBox-v0 (GCS over the box's modes), or a rotating slider (GcsPushBoxSE2-v0,
-    # GcsPushT-v0), planned through contact (lerobot_gcs_push/contact/, work in progress: issue 32).
-    env_id: str = ENV_ID
     # The slider's heading in radians (rotating sliders; a file's entries carry their own "heading").
     heading: float = 0.0
 
     def __post_init__(self) -> None:
         from lerobot_gcs_push.box_gcs import check_method
-        from lerobot_gcs_push.episodes.rollout import check_env_id
         from lerobot_gcs_push.registration import SCENES
 
+        starts, env_id = self.starts, self.starts.env_id
+        unused = [
+            name
+            for name, given in (
+                ("sampler", starts.sampler is not None),
+                ("seed", starts.seed is not None),
+                ("disturbances", starts.disturbances),
+            )
+            if given
+        ]
+        if unused:
+            raise ValueError(
+                f"plan samples no starts and runs no env: drop --{', --'.join(unused)} (give --box='[x, y]' and "
+                "--finger='[x, y]', or --initial_conditions=FILE.json)"
+            )
         check_method(self.method)
         if isinstance(self.heading, bool) or not is_finite_number(self.heading):
             raise ValueError(f"heading must be a finite number of radians, got {_plain(self.heading)!r}")
         self.heading = float(self.heading)
-        kind = SCENES[check_env_id(self.env_id)].kind
+        kind = SCENES[env_id].kind
         if kind.refuses_heading(self.heading):
-            raise ValueError(f"heading {self.heading} given, but {self.env_id}'s slider cannot rotate")
+            raise ValueError(f"heading {self.heading} given, but {env_id}'s slider cannot rotate")
         if self.method not in kind.methods or (self.goal is not None and not kind.goals_anywhere):
-            raise ValueError(f"{self.env_id} plans with the relaxation to the scene's goal pose only")
-        if self.initial_conditions and (self.box or self.finger):
+            raise ValueError(f"{env_id} plans with the relaxation to the scene's goal pose only")
+        if starts.initial_conditions and (self.box or self.finger):
             raise ValueError("give either initial_conditions or box/finger, not both")
-        if not self.initial_conditions and not (self.box and self.finger):
+        if not starts.initial_conditions and not (self.box and self.finger):
             raise ValueError("give --box='[x, y]' and --finger='[x, y]', or --initial_conditions=FILE.json")
 
 
@@ -120,14 +137,11 @@ def run_plan(cfg: PlanConfig) -> None:
     from lerobot_gcs_push.planning.factory import make_planner, speeds_for
     from lerobot_gcs_push.registration import SCENES
 
-    queries = (
-        load_initial_conditions(cfg.initial_conditions)
-        if cfg.initial_conditions
-        else [{"box": cfg.box, "finger": cfg.finger}]
-    )
-    scene = SCENES[cfg.env_id]
+    ics = cfg.starts.initial_conditions
+    queries = load_initial_conditions(ics) if ics else [{"box": cfg.box, "finger": cfg.finger}]
+    scene = SCENES[cfg.starts.env_id]
     for i, q in enumerate(queries):  # every entry checked before the first plan, each error naming its field
-        what = f"{cfg.initial_conditions!r} entry {i}" if cfg.initial_conditions else "plan"
+        what = f"{ics!r} entry {i}" if ics else "plan"
         heading = scene.kind.pose(scene.kind.slider(q["box"], q.get("heading", cfg.heading)))[2]
         scene.validate_state(q["box"], q["finger"], heading=heading, what=what, box_limit=scene.box_reach)
     planner = make_planner(scene, cfg.method)

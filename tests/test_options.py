@@ -25,6 +25,7 @@ SHARED = {"starts": StartsConfig, "expert": ExpertConfig, "output": OutputConfig
 OWN = {
     ("evaluate", "overwrite"): "deletes a folder of records (--output_dir), which has no repo_id and always continues",
     ("collect", "seed"): "seeds the choice of branch states; collect's starts are the rollouts' states, no sampler's",
+    ("plan", "method"): "the planner's own: plan runs no expert, so has none of its other settings (replanning ...)",
 }
 
 
@@ -118,7 +119,7 @@ def test_a_resume_compares_the_expert_settings(tmp_path):
 
 def _doc_commands() -> list[tuple[str, str, list[str]]]:
     """Every `gcs-push COMMAND ...` of the README, docs/, configs/README.md and the Makefile, with its
-    continuation lines, as (where, command, args)."""
+    continuation lines, as (where, command, args): a flag's value may be quoted (`--box='[2, -1.5]'`)."""
     out = []
     for path in [
         REPO / "README.md",
@@ -129,7 +130,8 @@ def _doc_commands() -> list[tuple[str, str, list[str]]]:
         text = path.read_text().replace("\\\n", " ")
         for line in text.splitlines():
             for m in re.finditer(
-                r"gcs-push (generate|evaluate|collect|demo)((?: +--[^\s`|#]+(?: +'[^']*'| +[^-\s`|#][^\s`|#]*)?)*)",
+                r"gcs-push (plan|generate|evaluate|collect|improve|demo)"
+                r"((?: +--[^\s`|#=']+(?:='[^']*'|=[^\s`|#']*)?(?: +'[^']*'| +[^-\s`|#][^\s`|#]*)?)*)",
                 line,
             ):
                 args = shlex.split(m.group(2).replace("$(DEMO_ARGS)", ""))
@@ -144,7 +146,8 @@ DOC_COMMANDS = _doc_commands()
 
 
 def test_the_docs_have_commands_to_check():
-    assert len(DOC_COMMANDS) >= 10 and {c for _, c, _ in DOC_COMMANDS} >= {"generate", "evaluate", "demo"}
+    assert len(DOC_COMMANDS) >= 10
+    assert {c for _, c, _ in DOC_COMMANDS} >= {"plan", "generate", "evaluate", "improve", "demo"}
 
 
 @pytest.mark.parametrize(
@@ -158,7 +161,9 @@ def test_every_documented_command_parses(where, command, args, monkeypatch):
         parse(command, args)
     except (ValueError, FileNotFoundError) as err:
         message = str(err)
-        assert re.search(r"pretrained_model|does not exist|needs Ray|neither a folder|no runs.jsonl", message), message
+        # `give --box` is plan's last check, after every flag's: a table's `plan --jsonl=true` names a flag.
+        allowed = r"pretrained_model|does not exist|needs Ray|neither a folder|no runs.jsonl|give --box"
+        assert re.search(allowed, message), message
         assert "unrecognized" not in message and "Couldn't parse" not in message, message
 
 
@@ -208,3 +213,28 @@ def test_collect_nests_the_output(tmp_path):
     assert parse("collect", [rollouts]).output.repo_id == "local/gcs_push_active"
     with pytest.raises(ValueError, match="not both"):
         parse("collect", [rollouts, "--overwrite=true", "--resume=true"])
+
+
+def test_plan_nests_the_starts(tmp_path):
+    """`--env_id` and `--initial_conditions` are the starts' (`--starts.env_id` too); plan samples nothing, so
+    the starts' sampler, seed and disturbances are refused by name."""
+    from lerobot_gcs_push.cli import PlanConfig
+
+    box = ["--box=[2.0, -1.0]", "--finger=[-3.0, 0.0]"]
+    flat = parse("plan", ["--env_id=GcsPushBoxSE2-v0", *box, "--heading=0.5"])
+    assert flat == parse("plan", ["--starts.env_id=GcsPushBoxSE2-v0", *box, "--heading=0.5"])
+    assert flat.starts.env_id == "GcsPushBoxSE2-v0" and parse("plan", box).starts.env_id == "GcsPushBox-v0"
+    assert flat == PlanConfig(box=(2.0, -1.0), finger=(-3.0, 0.0), env_id="GcsPushBoxSE2-v0", heading=0.5)
+    path = tmp_path / "ics.json"
+    path.write_text(json.dumps([{"box": [2.0, -1.0], "finger": [-3.0, 0.0]}]))
+    from_file = parse("plan", [f"--initial_conditions={path}"])
+    assert from_file == parse("plan", [f"--starts.initial_conditions={path}"])
+    assert from_file.starts.initial_conditions == str(path)
+    with pytest.raises(ValueError, match="not both"):
+        parse("plan", [f"--initial_conditions={path}", *box])
+    with pytest.raises(ValueError, match="drop --sampler, --seed"):
+        parse("plan", [*box, "--sampler=hard", "--starts.seed=3"])
+    with pytest.raises(ValueError, match="drop --disturbances"):
+        parse("plan", [*box, "--disturbances=true"])
+    with pytest.raises(ValueError, match="unknown env_id"):
+        parse("plan", [*box, "--env_id=GcsPushNothing-v0"])

@@ -1,6 +1,7 @@
 """Where a command's episodes start (`StartsConfig`): the one definition of `env_id`, `sampler`, `seed`,
-`disturbances` and `initial_conditions`, nested in `generate` and `evaluate` as LeRobot nests its configs.
-Its options keep their flat names (`--seed`, as well as `--starts.seed`: `settings.Shared`).
+`disturbances` and `initial_conditions`, nested in `generate` and `evaluate` as LeRobot nests its configs, and in
+`plan` (its env and its file of starts; it refuses the rest). Its options keep their flat names (`--seed`, as well
+as `--starts.seed`: `settings.Shared`).
 
 Not imported by `scene/__init__`: it names the registered envs, and `registration` imports the scene."""
 
