@@ -18,6 +18,7 @@ from lerobot_gcs_push.artifacts.shipped import shipped_path
 from lerobot_gcs_push.episodes.workers import FanOut
 from lerobot_gcs_push.evaluation import EvaluateConfig
 from lerobot_gcs_push.generate import GenerateConfig
+from lerobot_gcs_push.generate.config import OutputConfig
 from lerobot_gcs_push.improve import ImproveConfig
 from lerobot_gcs_push.improve.collect import CollectConfig
 from lerobot_gcs_push.pusht.keypoint_training import TrainKeypointsConfig
@@ -85,6 +86,7 @@ class PlanConfig:
             raise ValueError("give --box='[x, y]' and --finger='[x, y]', or --initial_conditions=FILE.json")
 
 
+@flat_options
 @dataclass
 class DemoConfig(FanOut):
     # The paper's whole protocol: 100 demonstrations and the experts on 20 initial conditions x 5 runs.
@@ -92,9 +94,10 @@ class DemoConfig(FanOut):
     protocol: bool = False
     # GCS demonstrations to write (skipped when the dataset exists and overwrite is false); default by protocol.
     episodes: int | None = None
-    # The dataset's LeRobot id (written to $HF_LEROBOT_HOME/<repo_id>); default local/gcs_push_box (what
-    # the training preset reads) with the protocol, local/gcs_push_box_quick without.
-    repo_id: str | None = None
+    # The dataset written, and what redoes it: --repo_id (default local/gcs_push_box, what the training preset
+    # reads, with the protocol; local/gcs_push_box_quick without), --root, and --overwrite, which also redoes
+    # both evaluations (`--output.repo_id` works too). No --resume: demo always continues what it finds.
+    output: OutputConfig = field(default_factory=OutputConfig)
     # The experts' evaluation: initial conditions x runs, with and without disturbances; default by protocol.
     num_initial_conditions: int | None = None
     # Runs per initial condition; default by protocol.
@@ -107,19 +110,19 @@ class DemoConfig(FanOut):
     policy_ics: int = 3
     # Torch device of the policy: cpu, cuda, cuda:N or mps.
     device: str = "cpu"
-    # Regenerate the dataset and redo both evaluations.
-    overwrite: bool = False
 
     def __post_init__(self) -> None:
         # Checked before the demonstrations are written, not minutes later when the step that needs it runs.
         from lerobot_gcs_push.evaluation import check_device, check_policy
 
         quick, full = (20, 5, 1, "local/gcs_push_box_quick"), (100, 20, 5, "local/gcs_push_box")
-        for name, value in zip(
-            ("episodes", "num_initial_conditions", "runs", "repo_id"), full if self.protocol else quick
-        ):
+        defaults = full if self.protocol else quick
+        for name, value in zip(("episodes", "num_initial_conditions", "runs"), defaults):
             if getattr(self, name) is None:
                 setattr(self, name, value)
+        self.output.fill(defaults[3])
+        if self.output.resume:
+            raise ValueError("demo continues its dataset and evaluations unless --overwrite=true: drop --resume")
         if min(self.episodes, self.num_initial_conditions, self.runs) < 1:
             raise ValueError("episodes, num_initial_conditions and runs must be >= 1")
         self.check_fan_out()
@@ -237,15 +240,14 @@ def run_demo(cfg: DemoConfig) -> None:
     from lerobot_gcs_push.evaluation.videos import side_by_side
     from lerobot_gcs_push.generate import dataset_root
 
+    overwrite = cfg.output.overwrite
     gen = GenerateConfig(
         episodes=cfg.episodes,
-        repo_id=cfg.repo_id,
-        resume=not cfg.overwrite,
+        output=replace(cfg.output, resume=not overwrite),
         **cfg.fan_out(),
-        overwrite=cfg.overwrite,
     )
     root = dataset_root(gen)
-    if root.exists() and not cfg.overwrite:
+    if root.exists() and not overwrite:
         print(f"dataset already at {root} (pass --overwrite=true to regenerate)")
     else:
         run_generate(gen)
@@ -259,9 +261,9 @@ def run_demo(cfg: DemoConfig) -> None:
             runs=cfg.runs,
             disturbances=True,
             output_dir=str(experts_dir),
-            dataset=cfg.repo_id,
+            dataset=str(root) if cfg.output.root else cfg.output.repo_id,
             **cfg.fan_out(),
-            overwrite=cfg.overwrite,
+            overwrite=overwrite,
         )
     )
     print(experts["tables_md"])
@@ -276,9 +278,9 @@ def run_demo(cfg: DemoConfig) -> None:
             **cfg.fan_out(),
             device=cfg.device,
             videos=cfg.policy_ics,
-            overwrite=cfg.overwrite,
+            overwrite=overwrite,
         )
-        if not cfg.overwrite and changed_weights(ev, unrecorded_changed=True):
+        if not overwrite and changed_weights(ev, unrecorded_changed=True):
             print(f"{cfg.policy} changed since the last demo: its runs in {policy_dir} are made again")
             ev = replace(ev, overwrite=True)
         print(evaluate(ev)["tables_md"])
@@ -297,7 +299,7 @@ def run_demo(cfg: DemoConfig) -> None:
     print(
         "train a policy on the dataset (CPU preset):\n"
         f"  lerobot-train --config_path={shipped_path('configs/policy/diffusion_cpu.json')} "
-        f"--dataset.repo_id={cfg.repo_id}"
+        f"--dataset.repo_id={cfg.output.repo_id}" + (f" --dataset.root={root}" if cfg.output.root else "")
     )
 
 

@@ -238,3 +238,31 @@ def test_plan_nests_the_starts(tmp_path):
         parse("plan", [*box, "--disturbances=true"])
     with pytest.raises(ValueError, match="unknown env_id"):
         parse("plan", [*box, "--env_id=GcsPushNothing-v0"])
+
+
+def test_demo_nests_the_output(tmp_path, monkeypatch, capsys):
+    """`--repo_id`, `--root` and `--overwrite` are the output's (`--output.repo_id` too), the default id still
+    the protocol's; the dataset demo writes is where they say, and a resume is what demo always does."""
+    from lerobot_gcs_push.cli import DemoConfig, run_demo
+
+    flat = parse("demo", ["--repo_id=local/d", "--overwrite=true"])
+    assert flat == parse("demo", ["--output.repo_id=local/d", "--output.overwrite=true"])
+    assert flat == DemoConfig(repo_id="local/d", overwrite=True) and flat.output.overwrite
+    assert parse("demo", []).output.repo_id == "local/gcs_push_box_quick"
+    assert parse("demo", ["--protocol=true", "--output.root=/x"]).output.repo_id == "local/gcs_push_box"
+    with pytest.raises(ValueError, match="drop --resume"):
+        parse("demo", ["--resume=true"])
+    made, evaluated = [], []
+
+    def fake_generate(gen):
+        made.append(gen)
+        gen.output.path().mkdir(parents=True)
+
+    monkeypatch.setattr("lerobot_gcs_push.cli.run_generate", fake_generate)
+    monkeypatch.setattr("lerobot_gcs_push.evaluation.evaluate", lambda ev: evaluated.append(ev) or {"tables_md": ""})
+    root = tmp_path / "ds"
+    run_demo(DemoConfig(root=str(root), policy="", output_dir=str(tmp_path / "out")))
+    (gen,) = made
+    assert gen.output == OutputConfig(repo_id="local/gcs_push_box_quick", root=str(root), resume=True)
+    assert gen.episodes == 20 and evaluated[0].dataset == str(root)
+    assert f"--dataset.repo_id=local/gcs_push_box_quick --dataset.root={root}" in capsys.readouterr().out

@@ -26,10 +26,10 @@ _IMPLICIT_SETTINGS = {"env_id": ENV_ID, **EXPERT_DEFAULTS}
 @dataclass
 class OutputConfig(Shared):
     """The dataset a command writes: the one definition of `repo_id`, `root`, `overwrite` and `resume`, nested
-    as `output` in `generate` and `collect` (their flat names work too: `--repo_id`, `--output.repo_id`)."""
+    as `output` in `generate`, `collect` and `demo` (their flat names work too: `--repo_id`, `--output.repo_id`)."""
 
     # LeRobot dataset id, "owner/name". Default: the command's (local/gcs_push_box for generate,
-    # local/gcs_push_active for collect).
+    # local/gcs_push_active for collect, by --protocol for demo).
     repo_id: str | None = None
     # Dataset folder; default: $HF_LEROBOT_HOME/<repo_id>, where LeRobot looks first.
     root: str | None = None
