@@ -22,6 +22,8 @@ class BaseConfig:
 
     # GCS demonstrations; every round's merge keeps them (1000: the base of every merge since round 1).
     episodes: int = 1000
+    # Their starts (generate's --sampler and --seed), not a nested StartsConfig: the run's env_id serves the
+    # rounds too, and the base takes neither disturbances nor initial_conditions (`lists` are replayed).
     sampler: str = "sobol"
     seed: int = 0
     # Steps of batch 32 from scratch: the CPU preset's own schedule, not yet tested as a base for rounds
