@@ -101,7 +101,9 @@ def judge(policy_dir: Path, out: Path, seed: int = JUDGE_SEED, episodes: int = J
         "--eval.use_async_envs=false", f"--seed={seed}", "--policy.device=cpu", f"--output_dir={out}",
     ]  # fmt: skip
     t0 = time.perf_counter()
-    subprocess.run(cmd, check=True, env={**os.environ, "HF_HUB_OFFLINE": "1"})
+    # One thread, as the trainer: beside another job on 2 cores, torch's two threads waiting on each other
+    # made a 2-minute judge run at 1 step a second (2026-12-07).
+    subprocess.run(cmd, check=True, env={**os.environ, "HF_HUB_OFFLINE": "1", "OMP_NUM_THREADS": "1"})
     overall = json.loads((out / "eval_info.json").read_text())["overall"]
     return {
         "command": " ".join(cmd[1:]),
