@@ -35,13 +35,15 @@ POSITION = [DEMOS / "position" / f"seed{s}.json" for s in (4800, 4801, 4802, 480
 
 @dataclass(frozen=True)
 class Pool:
-    """A pool's replay lists in order (the benchmark takes their first `episodes`), and how its labels are
-    read (`KeypointDataConfig.label_shift`)."""
+    """A pool's replay lists in order (the benchmark takes their first `episodes`), how its labels are read
+    (`KeypointDataConfig.label_shift`, `hold_frames`), and the peak learning rate when a variant tests the
+    schedule rather than the data (None: the preset's)."""
 
     lists: list
     episodes: int = 1000
     label_shift: int = 0
     hold_frames: int = 0
+    lr: float | None = None
 
 
 POOLS = {
@@ -56,6 +58,11 @@ POOLS = {
     # The same demonstrations, each followed by 10 frames in which the agent is held where it was at the
     # success: what stopping at the goal looks like (the v2 policy's rollouts push the T past it).
     "position_hold10": Pool(POSITION, hold_frames=10),
+    # The best data so far (shift 1) at three times the preset's peak learning rate: whether 1.28 M samples
+    # leave the small UNet under-trained (the schedule, not the data).
+    "position_shift1_lr3e-4": Pool(POSITION, label_shift=1, lr=3e-4),
+    # The expert leading by 4 actions, with DART's 4 px of command noise (labels clean), 2026-12-07.
+    "lead4_dart4": Pool([DEMOS / "lead4_dart4" / f"seed{s}.json" for s in (4800, 4801, 4802, 4803)]),
     # Aggregated as DAgger does: the position pool and takeover round 1's 350 demonstrations from the v2
     # position policy's stall states (`experiments/pusht/takeover/round.sh`).
     "position_takeover1": Pool([*POSITION, DEMOS / "takeover" / "r1.json"], episodes=1350),
@@ -87,7 +94,7 @@ def train_config(pool: str, steps: int = STEPS, episodes: int | None = None, wor
     raw["data"] |= {"lists": [str(p) for p in spec.lists], "episodes": episodes or spec.episodes,
                     "cache_dir": str(REPO / "outputs" / "keypoints"), "label_shift": spec.label_shift,
                     "hold_frames": spec.hold_frames}  # fmt: skip
-    raw["schedule"] |= {"steps": steps, "batch_size": BATCH}
+    raw["schedule"] |= {"steps": steps, "batch_size": BATCH} | ({"lr": spec.lr} if spec.lr is not None else {})
     raw |= {"preset": str(REPO / raw["preset"]), "output_dir": str(work / "train"),
             "partial_dir": str(folder(pool) / "partial"), "seed": SEED}  # fmt: skip
     return draccus.decode(TrainKeypointsConfig, raw)
@@ -135,6 +142,7 @@ def run(pool: str = DEFAULT_POOL, stage_minutes: float | None = None, steps: int
         "episodes": cfg.data.episodes,
         "label_shift": cfg.data.label_shift,
         "hold_frames": cfg.data.hold_frames,
+        "lr": cfg.schedule.lr,  # None: the preset's
         "steps": steps,
         "batch_size": BATCH,
         "samples": steps * BATCH,
