@@ -63,6 +63,9 @@ POOLS = {
     "position_shift1_lr3e-4": Pool(POSITION, label_shift=1, lr=3e-4),
     # The expert leading by 4 actions, with DART's 4 px of command noise (labels clean), 2026-12-07.
     "lead4_dart4": Pool([DEMOS / "lead4_dart4" / f"seed{s}.json" for s in (4800, 4801, 4802, 4803)]),
+    # The expert leading by 4 actions, each demonstration going on past gym-pusht's success until the T covers
+    # 0.98 of the goal, or 60 frames after it (`generate --finish_coverage`): the judges' near misses.
+    "lead4_finish98": Pool([DEMOS / "lead4_finish98" / f"seed{s}.json" for s in (4800, 4801, 4802, 4803)]),
     # Aggregated as DAgger does: the position pool and takeover round 1's 350 demonstrations from the v2
     # position policy's stall states (`experiments/pusht/takeover/round.sh`).
     "position_takeover1": Pool([*POSITION, DEMOS / "takeover" / "r1.json"], episodes=1350),

@@ -6,7 +6,9 @@
 #   LEAD=K    commands leading K actions (`--expert.lead_actions`): demos/leadK/
 #   NOISE=S   DART: the env runs each command plus S px of noise, the list keeps the clean labels
 #             (`--command_noise_px`): demos/<pool>_dartS/
-#   LEAD and NOISE write keypoint datasets (no rendering: a list rebuilds either kind). WORKERS=1 leaves a core;
+#   FINISH=C  the demonstration goes on past gym-pusht's success until coverage C, or FINISH_FRAMES (60) steps
+#             after it (`--finish_coverage`, `--finish_frames`): demos/<pool>_finishCC/
+#   LEAD, NOISE and FINISH write keypoint datasets (no rendering: a list rebuilds either kind). WORKERS=1 leaves a core;
 #   EPISODES=N demonstrations a seed (250).
 set -eu
 cd "$(dirname "$0")/../.."
@@ -14,6 +16,9 @@ home=${HF_LEROBOT_HOME:-$HOME/.cache/huggingface/lerobot}
 name=position extra=()
 if [ -n "${LEAD:-}" ]; then name=lead$LEAD extra+=(--expert.lead_actions="$LEAD"); fi
 if [ -n "${NOISE:-}" ]; then name=${name}_dart$NOISE extra+=(--command_noise_px="$NOISE"); fi
+if [ -n "${FINISH:-}" ]; then
+  name=${name}_finish${FINISH#0.} extra+=(--finish_coverage="$FINISH" --finish_frames="${FINISH_FRAMES:-60}")
+fi
 if [ ${#extra[@]} -gt 0 ]; then extra+=(--obs_type=environment_state_agent_pos); fi
 mkdir -p "experiments/pusht/demos/$name"
 for seed in "${@:-4800 4801 4802 4803}"; do

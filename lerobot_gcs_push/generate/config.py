@@ -82,6 +82,12 @@ class GenerateConfig(FanOut):
     # target the env runs, while the dataset records the expert's own target; the replay list holds both
     # and the draws' seed. 0: none.
     command_noise_px: float = 0.0
+    # gym-pusht only: the demonstration goes on past gym-pusht's success (coverage 0.95) until the T covers
+    # this share of the goal, or finish_frames steps after the first success (then at the next success):
+    # a policy that imitates the finish roughly still lands past the threshold (`pusht.finish`). None:
+    # gym-pusht's own end. The replay list keeps each episode's setting.
+    finish_coverage: float | None = None
+    finish_frames: int = 20
     # Simulated seconds before a rollout counts as failed. Default: the env's (500 s, the paper's; 30 s, that
     # is 300 steps, for gym-pusht, so its episodes succeed within gym-pusht's own limit).
     max_sim_time_s: float | None = None
@@ -124,6 +130,8 @@ class GenerateConfig(FanOut):
                 raise ValueError("--expert=replay repeats undisturbed episodes: drop --disturbances")
             if self.command_noise_px:
                 raise ValueError("--expert=replay repeats each entry's own command noise: drop --command_noise_px")
+            if self.finish_coverage is not None:
+                raise ValueError("--expert=replay ends each entry where it ended (its \"finish\"): drop --finish_coverage")
             for i, ic in enumerate(ics):
                 if "command_noise" in ic and "labels" not in ic:
                     raise ValueError(f'--expert=replay: initial condition {i} has "command_noise" but no "labels"')
@@ -138,8 +146,14 @@ class GenerateConfig(FanOut):
             check_obs_type(self.obs_type)
             if not (math.isfinite(self.command_noise_px) and self.command_noise_px >= 0):
                 raise ValueError(f"command_noise_px must be a finite std >= 0 px, got {self.command_noise_px}")
+            if self.finish_coverage is not None:
+                from lerobot_gcs_push.pusht.finish import Finish
+
+                Finish(self.finish_coverage, self.finish_frames)  # refused here, with its reason
         elif self.command_noise_px:
             raise ValueError(f"command_noise_px is gym-pusht's (its targets are px); {env_id} takes none")
+        elif self.finish_coverage is not None:
+            raise ValueError(f"finish_coverage is gym-pusht's (its success is coverage > 0.95); {env_id} takes none")
         elif self.obs_type != "pixels_agent_pos":
             raise ValueError(f"{env_id} writes obs_type pixels_agent_pos only, got {self.obs_type!r}")
         if not 0 < self.max_sim_time_s < float("inf"):  # inf would roll a failing start out forever

@@ -8,7 +8,7 @@ and the renderer take, with no planning. A long generation is so committed in st
 
 Each entry is its initial condition (box, finger, heading, pusht_state: what `load_initial_conditions`
 reads) plus "actions", one row per frame (an episode recorded under DART's noise adds "command_noise" and
-"labels", the clean commands its dataset holds), as float32 values written in their shortest exact form. gym-pusht
+"labels", the clean commands its dataset holds; one that went on past gym-pusht's success adds "finish"), as float32 values written in their shortest exact form. gym-pusht
 runs those float32 actions, so its replay repeats every stored value; the Drake envs ran the experts'
 float64 commands, so there the replayed states differ by float32's rounding (5e-7 m) and the images not
 at all.
@@ -24,8 +24,9 @@ import numpy as np
 REPLAY_META = "meta/gcs_push_replay.json"
 START_KEYS = ("box", "finger", "heading", "pusht_state")
 # What an entry holds besides its start: the actions the env ran and, for an episode recorded under DART's
-# command noise, that noise and the labels the dataset holds (`pusht.dataset.CommandNoise`).
-REPLAY_KEYS = ("actions", "labels", "command_noise")
+# command noise, that noise and the labels the dataset holds (`pusht.dataset.CommandNoise`); for one that
+# went on past gym-pusht's success, where it ended (`pusht.finish.Finish`).
+REPLAY_KEYS = ("actions", "labels", "command_noise", "finish")
 
 
 class ReplayActions:
@@ -70,8 +71,9 @@ def entry_line(entry: dict) -> str:
     """One entry as one line of JSON: the start's keys, then the actions (exact float32) and, for a DART
     episode, its noise and labels."""
     head = {k: entry[k] for k in START_KEYS if entry.get(k) is not None}
-    if entry.get("command_noise") is not None:
-        head["command_noise"] = entry["command_noise"]
+    for key in ("command_noise", "finish"):
+        if entry.get(key) is not None:
+            head[key] = entry[key]
     line = f'{json.dumps(head)[:-1]}, "actions": [{_rows(entry["actions"])}]'
     if entry.get("labels") is not None:
         line += f', "labels": [{_rows(entry["labels"])}]'
@@ -115,6 +117,8 @@ def dataset_replay(root: Path, metas: list[dict]) -> list[dict]:
             entry |= {"command_noise": noise.spec(), "actions": noise.commands_run(stored), "labels": stored}
         else:
             entry["actions"] = stored
+        if "finish" in meta:
+            entry["finish"] = meta["finish"]
         entries.append(entry)
     return entries
 

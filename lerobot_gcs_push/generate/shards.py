@@ -21,6 +21,7 @@ from lerobot_gcs_push.generate.frames import (
 from lerobot_gcs_push.generate.replay import ReplayActions
 from lerobot_gcs_push.generate.workdir import WorkDir
 from lerobot_gcs_push.pusht.dataset import CommandNoise, PushTFrames
+from lerobot_gcs_push.pusht.finish import Finish
 from lerobot_gcs_push.scene import (
     episode_seed,
 )
@@ -116,7 +117,13 @@ def _run_episode(job: tuple[int, dict]) -> dict:
         expert.load(ic["actions"])
     elif cfg.command_noise_px > 0:
         noise = CommandNoise(cfg.command_noise_px, seed)
-    frames = PushTFrames(env, cfg.obs_type, noise, expected_run) if pusht else EpisodeFrames(env.scene)
+    finish = None
+    if cfg.expert.mode == "replay" and "finish" in ic:  # the entry ended where its own setting said
+        finish = Finish.of(ic["finish"])
+    elif cfg.finish_coverage is not None:
+        finish = Finish(cfg.finish_coverage, cfg.finish_frames)
+    run_env = env if finish is None else finish.wrap(env)
+    frames = PushTFrames(run_env, cfg.obs_type, noise, expected_run) if pusht else EpisodeFrames(env.scene)
     t0 = time.perf_counter()
     result = rollout(
         frames.env if pusht else env,
@@ -151,6 +158,8 @@ def _run_episode(job: tuple[int, dict]) -> dict:
         meta["pusht_state_initial"] = [float(v) for v in ic["pusht_state"]]
     if noise is not None:
         meta["command_noise"] = noise.spec()
+    if finish is not None:
+        meta["finish"] = finish.spec()
     arrays = frames.arrays() if result["success"] else {}
     # The worker compresses and saves its own episode; only the metadata travels back.
     _WORKER["work"].save({"meta": meta, "arrays": arrays})
