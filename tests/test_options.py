@@ -104,6 +104,9 @@ def test_records_keep_their_flat_names_and_gain_only_what_is_set():
     assert set(plain) == before and (plain["seed"], plain["expert"]) == (5, "closed-loop")
     tuned = recorded_settings(parse("generate", ["--seed=5", "--expert=closed-loop", "--expert.replan_every=3"]))
     assert tuned == plain | {"replan_every": 3}
+    pusht = ["--seed=5", "--expert=closed-loop", "--env_id=gym_pusht/PushT-v0"]
+    finished = recorded_settings(parse("generate", [*pusht, "--finish_coverage=0.98"]))
+    assert finished == recorded_settings(parse("generate", pusht)) | {"finish_coverage": 0.98, "finish_frames": 20}
 
 
 def test_a_resume_compares_the_expert_settings(tmp_path):

@@ -175,7 +175,7 @@ class GenerateConfig(FanOut):
 def recorded_settings(cfg: GenerateConfig) -> dict:
     """What a dataset and its work folder record it was made with (its settings under their flat names,
     `settings.flat_settings`); where and how the jobs run may change on --resume, what they compute may not.
-    The expert's settings beyond its mode and method only where set: a dataset made without them records
+    The expert's settings beyond its mode and method, and the finish, only where set: a dataset made without them records
     what it always did (`_IMPLICIT_SETTINGS` holds their defaults for the comparison)."""
     skip = (
         *(f.name for f in fields(ExpertConfig)),
@@ -191,7 +191,10 @@ def recorded_settings(cfg: GenerateConfig) -> dict:
         "shard_size",
     )
     flat = flat_settings(cfg)
-    return {k: v for k, v in flat.items() if k not in skip} | {"method": cfg.expert.method} | cfg.expert.non_defaults()
+    out = {k: v for k, v in flat.items() if k not in (*skip, "finish_coverage", "finish_frames")}
+    if cfg.finish_coverage is not None:  # as the expert's: only where set, so older folders resume
+        out |= {"finish_coverage": cfg.finish_coverage, "finish_frames": cfg.finish_frames}
+    return out | {"method": cfg.expert.method} | cfg.expert.non_defaults()
 
 
 def lerobot_home() -> Path:

@@ -12,6 +12,7 @@ success: the last frame is always one, so the list still replays to its success.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from numbers import Integral
 
 
 @dataclass(frozen=True)
@@ -25,14 +26,14 @@ class Finish:
     def __post_init__(self) -> None:
         if not 0.95 < self.coverage <= 1.0:  # also refuses NaN
             raise ValueError(f"finish coverage must be in (0.95, 1] (gym-pusht's success is 0.95), got {self.coverage}")
-        if int(self.frames) != self.frames or self.frames < 1:
+        if isinstance(self.frames, bool) or not isinstance(self.frames, Integral) or self.frames < 1:
             raise ValueError(f"finish frames must be a whole number >= 1, got {self.frames}")
 
     @classmethod
     def of(cls, spec: dict) -> Finish:
         """From a replay entry's or an episode's "finish" record."""
         try:
-            return cls(float(spec["coverage"]), int(spec["frames"]))
+            return cls(float(spec["coverage"]), spec["frames"])
         except (KeyError, TypeError, ValueError) as err:
             raise ValueError(f'"finish" must be {{"coverage": c, "frames": n}} with c in (0.95, 1]: {err}') from None
 
