@@ -15,6 +15,9 @@ the same command on any machine goes on from there, and judges once the budget i
 
     python -m benchmarks.run --only learnability                      # the default pool, to the end
     python -m benchmarks.learnability --pool=position --stage_minutes=60
+    python -m benchmarks.learnability --pool=position --validation_seed=12100   # its finished policy, again
+
+The same command after the budget is spent judges the saved policy again (a judge cut short loses nothing).
 """
 
 from __future__ import annotations
@@ -158,12 +161,30 @@ def run(pool: str = DEFAULT_POOL, stage_minutes: float | None = None, steps: int
     return result
 
 
+def validate(pool: str, seed: int, episodes: int = JUDGE_EPISODES) -> dict:
+    """The pool's finished policy judged again on a validation seed (never the judge's own), recorded in
+    `experiments/pusht/learnability/v2/<pool>/validation<seed>.json`."""
+    if seed == JUDGE_SEED:
+        raise ValueError(f"seed {seed} is the benchmark's judge; a validation seed is another one")
+    saved = Path(train_config(pool).output_dir) / "pretrained_model"
+    if not (saved / "model.safetensors").is_file():
+        raise FileNotFoundError(f"{saved}: no finished policy; run --pool={pool} to its end first")
+    record = judge(saved, saved.parent.parent / f"judge{seed}", seed=seed, episodes=episodes)
+    (folder(pool) / f"validation{seed}.json").write_text(json.dumps(record, indent=1))
+    return record
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--pool", default=DEFAULT_POOL, choices=sorted(POOLS))
     ap.add_argument("--stage_minutes", type=float, default=None, help="end this stage after so many minutes")
+    ap.add_argument("--validation_seed", type=int, default=None,
+                    help="judge the pool's finished policy on this seed instead (validation<seed>.json)")  # fmt: skip
     args = ap.parse_args(argv)
-    print(json.dumps(run(args.pool, args.stage_minutes), indent=1))
+    if args.validation_seed is not None:
+        print(json.dumps(validate(args.pool, args.validation_seed), indent=1))
+    else:
+        print(json.dumps(run(args.pool, args.stage_minutes), indent=1))
     return 0
 
 
