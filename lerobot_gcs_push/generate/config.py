@@ -131,7 +131,7 @@ class GenerateConfig(FanOut):
             if self.command_noise_px:
                 raise ValueError("--expert=replay repeats each entry's own command noise: drop --command_noise_px")
             if self.finish_coverage is not None:
-                raise ValueError("--expert=replay ends each entry where it ended (its \"finish\"): drop --finish_coverage")
+                raise ValueError("--expert=replay ends each entry where its 'finish' did: drop --finish_coverage")
             for i, ic in enumerate(ics):
                 if "command_noise" in ic and "labels" not in ic:
                     raise ValueError(f'--expert=replay: initial condition {i} has "command_noise" but no "labels"')
@@ -175,8 +175,8 @@ class GenerateConfig(FanOut):
 def recorded_settings(cfg: GenerateConfig) -> dict:
     """What a dataset and its work folder record it was made with (its settings under their flat names,
     `settings.flat_settings`); where and how the jobs run may change on --resume, what they compute may not.
-    The expert's settings beyond its mode and method, and the finish, only where set: a dataset made without them records
-    what it always did (`_IMPLICIT_SETTINGS` holds their defaults for the comparison)."""
+    The expert's settings beyond its mode and method, and the finish, only where set: a dataset made without
+    them records what it always did (`_IMPLICIT_SETTINGS` holds their defaults for the comparison)."""
     skip = (
         *(f.name for f in fields(ExpertConfig)),
         "workers",

@@ -8,10 +8,10 @@ and the renderer take, with no planning. A long generation is so committed in st
 
 Each entry is its initial condition (box, finger, heading, pusht_state: what `load_initial_conditions`
 reads) plus "actions", one row per frame (an episode recorded under DART's noise adds "command_noise" and
-"labels", the clean commands its dataset holds; one that went on past gym-pusht's success adds "finish"), as float32 values written in their shortest exact form. gym-pusht
-runs those float32 actions, so its replay repeats every stored value; the Drake envs ran the experts'
-float64 commands, so there the replayed states differ by float32's rounding (5e-7 m) and the images not
-at all.
+"labels", the clean commands its dataset holds; one that went on past gym-pusht's success adds "finish"), as
+float32 values written in their shortest exact form. gym-pusht runs those float32 actions, so its replay
+repeats every stored value; the Drake envs ran the experts' float64 commands, so there the replayed states
+differ by float32's rounding (5e-7 m) and the images not at all.
 """
 
 from __future__ import annotations
