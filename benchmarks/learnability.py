@@ -47,6 +47,7 @@ class Pool:
     label_shift: int = 0
     hold_frames: int = 0
     lr: float | None = None
+    down_dims: tuple | None = None  # the UNet's channels (None: the preset's 64/128/256)
 
 
 POOLS = {
@@ -64,6 +65,9 @@ POOLS = {
     # The best data so far (shift 1) at three times the preset's peak learning rate: whether 1.28 M samples
     # leave the small UNet under-trained (the schedule, not the data).
     "position_shift1_lr3e-4": Pool(POSITION, label_shift=1, lr=3e-4),
+    # Shift 1's data on a UNet of 128/256/512 (16.6 M weights, 3.7x the preset's): whether the near misses are
+    # the small model's precision (the model, not the data or the schedule).
+    "position_shift1_unet128": Pool(POSITION, label_shift=1, down_dims=(128, 256, 512)),
     # The expert leading by 4 actions, with DART's 4 px of command noise (labels clean), 2026-12-07.
     "lead4_dart4": Pool([DEMOS / "lead4_dart4" / f"seed{s}.json" for s in (4800, 4801, 4802, 4803)]),
     # The expert leading by 4 actions, each demonstration going on past gym-pusht's success until the T covers
@@ -87,7 +91,7 @@ def folder(pool: str) -> Path:
     return OUT / pool
 
 
-def train_config(pool: str, steps: int = STEPS, episodes: int | None = None, work=None):
+def train_config(pool: str, steps: int = STEPS, episodes: int | None = None, work=None, threads: int = 1):
     """`configs/train/pusht_keypoints.json` (what `gcs-push train` runs) on the pool's lists, its state in
     the pool's folder."""
     import draccus
@@ -101,17 +105,21 @@ def train_config(pool: str, steps: int = STEPS, episodes: int | None = None, wor
                     "cache_dir": str(REPO / "outputs" / "keypoints"), "label_shift": spec.label_shift,
                     "hold_frames": spec.hold_frames}  # fmt: skip
     raw["schedule"] |= {"steps": steps, "batch_size": BATCH} | ({"lr": spec.lr} if spec.lr is not None else {})
+    if spec.down_dims is not None:
+        raw["model"] = {"down_dims": list(spec.down_dims)}
     raw |= {"preset": str(REPO / raw["preset"]), "output_dir": str(work / "train"),
-            "partial_dir": str(folder(pool) / "partial"), "seed": SEED}  # fmt: skip
+            "partial_dir": str(folder(pool) / "partial"), "seed": SEED, "threads": threads}  # fmt: skip
     return draccus.decode(TrainKeypointsConfig, raw)
 
 
-def judge(policy_dir: Path, out: Path, seed: int = JUDGE_SEED, episodes: int = JUDGE_EPISODES) -> dict:
-    """`lerobot-eval` on gym-pusht's keypoints: success, average max reward and sum reward."""
+def judge(policy_dir: Path, out: Path, seed: int = JUDGE_SEED, episodes: int = JUDGE_EPISODES,
+          overrides: tuple[str, ...] = ()) -> dict:  # fmt: skip
+    """`lerobot-eval` on gym-pusht's keypoints: success, average max reward and sum reward. `overrides` are
+    more `lerobot-eval` arguments (`--policy.num_inference_steps=100`: a sampler probe)."""
     cmd = [
         str(Path(sys.executable).parent / "lerobot-eval"), f"--policy.path={policy_dir}", "--env.type=pusht",
         "--env.obs_type=environment_state_agent_pos", f"--eval.n_episodes={episodes}", "--eval.batch_size=10",
-        "--eval.use_async_envs=false", f"--seed={seed}", "--policy.device=cpu", f"--output_dir={out}",
+        "--eval.use_async_envs=false", f"--seed={seed}", "--policy.device=cpu", f"--output_dir={out}", *overrides,
     ]  # fmt: skip
     t0 = time.perf_counter()
     # One thread, as the trainer: beside another job on 2 cores, torch's two threads waiting on each other
@@ -129,12 +137,12 @@ def judge(policy_dir: Path, out: Path, seed: int = JUDGE_SEED, episodes: int = J
 
 
 def run(pool: str = DEFAULT_POOL, stage_minutes: float | None = None, steps: int = STEPS,
-        episodes: int | None = None, judge_episodes: int = JUDGE_EPISODES) -> dict:  # fmt: skip
+        episodes: int | None = None, judge_episodes: int = JUDGE_EPISODES, threads: int = 1) -> dict:  # fmt: skip
     """Train the pool's policy to the budget (or for one stage), then judge it; the record lands in
     `experiments/pusht/learnability/v2/<pool>/result.json`."""
     from lerobot_gcs_push.pusht.keypoint_training import train
 
-    cfg = train_config(pool, steps, episodes)
+    cfg = train_config(pool, steps, episodes, threads=threads)
     folder(pool).mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     saved = train(cfg, stop_after_s=None if stage_minutes is None else 60 * stage_minutes)
@@ -149,6 +157,8 @@ def run(pool: str = DEFAULT_POOL, stage_minutes: float | None = None, steps: int
         "label_shift": cfg.data.label_shift,
         "hold_frames": cfg.data.hold_frames,
         "lr": cfg.schedule.lr,  # None: the preset's
+        "down_dims": cfg.model.down_dims,  # None: the preset's
+        "threads": threads,
         "steps": steps,
         "batch_size": BATCH,
         "samples": steps * BATCH,
@@ -180,11 +190,13 @@ def main(argv=None) -> int:
     ap.add_argument("--stage_minutes", type=float, default=None, help="end this stage after so many minutes")
     ap.add_argument("--validation_seed", type=int, default=None,
                     help="judge the pool's finished policy on this seed instead (validation<seed>.json)")  # fmt: skip
+    ap.add_argument("--threads", type=int, default=1,
+                    help="torch threads for training (the records before 2026-12-07 18:00 used 1)")  # fmt: skip
     args = ap.parse_args(argv)
     if args.validation_seed is not None:
         print(json.dumps(validate(args.pool, args.validation_seed), indent=1))
     else:
-        print(json.dumps(run(args.pool, args.stage_minutes), indent=1))
+        print(json.dumps(run(args.pool, args.stage_minutes, threads=args.threads), indent=1))
     return 0
 
 

@@ -12,6 +12,7 @@ import torch
 from lerobot_gcs_push.pusht import keypoint_data
 from lerobot_gcs_push.pusht.keypoint_training import (
     KeypointDataConfig,
+    ModelConfig,
     ScheduleConfig,
     TrainKeypointsConfig,
     normalise,
@@ -80,6 +81,21 @@ def test_the_saved_folder_normalises_as_training_did_and_a_resumed_run_equals_an
         np.testing.assert_allclose(out[k].numpy(), normalise(v.numpy(), stats[k]), atol=1e-5)
     back = post(torch.from_numpy(normalise(episodes.arrays["action"][:5], stats["action"])))
     np.testing.assert_allclose(back.numpy(), episodes.arrays["action"][:5], atol=1e-3)
+
+
+def test_the_models_size_is_what_model_down_dims_asks_and_what_the_folder_loads(tmp_path):
+    from lerobot.policies.diffusion.modeling_diffusion import DiffusionPolicy
+
+    cfg = _config(tmp_path, 2, "small")
+    cfg.model = ModelConfig(down_dims=[16, 32])
+    folder = train(cfg, progress=False)
+    assert json.loads((folder / "config.json").read_text())["down_dims"] == [16, 32]
+    unet = DiffusionPolicy.from_pretrained(folder).diffusion.unet
+    assert [block[0].out_channels for block in unet.down_modules] == [16, 32]  # the blocks, as asked
+    with pytest.raises(ValueError, match="positive channel counts"):
+        TrainKeypointsConfig(data=cfg.data, model=ModelConfig(down_dims=[16, 0]))
+    with pytest.raises(ValueError, match="keeps its base's model"):
+        TrainKeypointsConfig(data=cfg.data, model=ModelConfig(down_dims=[16, 32]), init_from=str(folder))
 
 
 def test_a_run_goes_on_from_the_small_partial_on_another_machine(tmp_path):

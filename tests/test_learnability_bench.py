@@ -17,6 +17,7 @@ def test_every_pool_is_the_trainers_config_at_the_benchmarks_budget(pool):
     assert cfg.data.lists == [str(p) for p in spec.lists] and cfg.data.episodes == spec.episodes
     assert (cfg.data.label_shift, cfg.data.hold_frames) == (spec.label_shift, spec.hold_frames)
     assert cfg.schedule.lr == spec.lr  # None: the preset's
+    assert cfg.model.down_dims == (None if spec.down_dims is None else list(spec.down_dims))
     assert (cfg.schedule.steps, cfg.schedule.batch_size, cfg.seed) == (20000, 64, 1000)  # 1.28 M samples
 
 

@@ -69,9 +69,17 @@ class ScheduleConfig:
 
 
 @dataclass
+class ModelConfig:
+    # The UNet's channels per level (`DiffusionConfig.down_dims`); None: the preset's. Sizes are compared at
+    # equal samples without a second preset to keep in step with the first.
+    down_dims: list[int] | None = None
+
+
+@dataclass
 class TrainKeypointsConfig:
     data: KeypointDataConfig = field(default_factory=KeypointDataConfig)
     schedule: ScheduleConfig = field(default_factory=ScheduleConfig)
+    model: ModelConfig = field(default_factory=ModelConfig)
     # A lerobot-train config (`configs/policy/`): its `policy` is the model, trained the same way by
     # `lerobot-train --config_path=...` on a GPU.
     preset: str = PRESET
@@ -103,6 +111,11 @@ class TrainKeypointsConfig:
             raise ValueError(f"schedule.save_every must be >= 1, got {self.schedule.save_every}")
         if not 0 <= self.schedule.ema_max < 1:
             raise ValueError(f"schedule.ema_max must be in [0, 1), got {self.schedule.ema_max}")
+        dims = self.model.down_dims
+        if dims is not None and (not dims or min(dims) < 1):
+            raise ValueError(f"model.down_dims must be positive channel counts, got {dims}")
+        if dims is not None and self.init_from is not None:
+            raise ValueError("model.down_dims with init_from: a fine-tune keeps its base's model")
         if self.init_from is not None:  # refused before the replay, which takes minutes
             from lerobot_gcs_push.pusht.keypoint_base import check_base
 
@@ -202,6 +215,8 @@ def prepare(cfg: TrainKeypointsConfig, progress: bool = True) -> Start:
         from lerobot_gcs_push.pusht.keypoint_base import base_config
 
         pcfg = base_config(cfg.init_from)
+    if cfg.model.down_dims is not None:
+        pcfg.down_dims = tuple(cfg.model.down_dims)
     pcfg.device = "cpu" if pcfg.device in (None, "cuda") and not torch.cuda.is_available() else pcfg.device
     data = keypoint_data.load(cfg.data.lists, cfg.data.episodes, cfg.data.cache_dir, progress, cfg.data.hold_frames)
     data = data.labels_ahead(cfg.data.label_shift)
