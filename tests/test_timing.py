@@ -77,3 +77,24 @@ def test_without_a_bound_a_schedule_is_linear_interpolation_in_time_even_through
     np.testing.assert_allclose(sched.commands, expected, atol=1e-12)
     np.testing.assert_allclose(sched.slider, np.stack([np.interp(t, times, sp[:, i]) for i in range(3)], 1), atol=1e-12)
     assert [str(k) for k in sched.kinds[9:11]] == ["free", "push"]  # t = 1.0 ends the free leg
+
+
+def test_the_last_push_arrives_at_the_arrival_speed_over_its_last_stretch():
+    """A free leg and a 1 m push at 1 m/s under 4 m/s^2, the last 0.1 m at 0.2 m/s. Hand-computed: the push
+    is up 0.25 s (0.125 m), down to 0.2 m/s in 0.2 s (0.12 m), cruising 0.655 m between; then 0.095 m at
+    0.2 m/s (0.475 s) and down to rest in 0.05 s (0.005 m): 1.63 s against 1.25 s without the arrival. Every
+    command in the last 0.1 m moves at most 0.2 m/s x dt, and an earlier push keeps its speed."""
+    fp = np.array([[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 2.0], [2.0, 2.0]])
+    plan = Plan("hand", 0.0, None, 0.0, [], np.zeros((5, 2)), fp, [FREE, PUSH, FREE, PUSH], np.zeros(2))
+    fast = Speeds(free=1.0, push=1.0, push_dwell_s=0.0, push_lead=0.0, accel=4.0)
+    slow = Speeds(**{**fast.__dict__, "arrive": 0.2, "arrive_m": 0.1})
+    assert plan.duration(slow) - plan.duration(fast) == pytest.approx(1.63 - 1.25)
+    commands = plan.schedule(10, slow).commands
+    np.testing.assert_allclose(commands[-1], [2.0, 2.0])
+    steps = np.linalg.norm(np.diff(commands, axis=0), axis=1)
+    last = commands[:-1, 0] >= 1.9 - 1e-9  # steps within the last 0.1 m
+    assert last.sum() >= 5 and steps[last].max() <= 0.2 * 0.1 + 1e-9
+    first_push = (commands[1:, 1] > 0.3) & (commands[1:, 1] < 0.7) & (commands[1:, 0] == 0.0)
+    np.testing.assert_allclose(steps[first_push], 0.1, atol=1e-9)  # the earlier push cruises at 1 m/s
+    short = Plan("hand", 0.0, None, 0.0, [], np.zeros((2, 2)), fp[:2] * 0.05, [PUSH], np.zeros(2))
+    assert short.duration(slow) == pytest.approx(0.05 / 0.2 + 0.2 / 4)  # shorter than 0.1 m: all of it at 0.2

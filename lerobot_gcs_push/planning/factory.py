@@ -5,7 +5,7 @@ box's GCS cost-to-go that scores any policy's chunks (regret).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import ClassVar
 
 import numpy as np
@@ -62,11 +62,14 @@ def make_expert(scene, fps: float, config: ExpertConfig | None = None, planner=N
         raise ValueError("the replay expert runs recorded actions and plans nothing: it is generate's")
     kind = scene.kind
     planner = planner or make_planner(scene, config.method)
+    speeds = kind.speeds(config.commands)
+    if config.arrive > 0:
+        speeds = replace(speeds, arrive=config.arrive, arrive_m=config.arrive_m)
     expert = PlanExpert(
         planner,
         fps,
         config,
-        kind.speeds(config.commands),
+        speeds,
         kind.replan_rule(config.commands),
         stage_first=kind.stage_first,
         replace_detours=kind.replace_detours,
@@ -121,6 +124,10 @@ class ExpertConfig(Shared):
     # it by single pushes chosen on the linearised model (`contact.fine`), not by plans through the
     # relaxation; 0 turns that off; none: the scene's (`fine_within_for`).
     fine_within: float | None = None
+    # The last `arrive_m` m of each plan's last push at `arrive` m/s at most (`planning.plan.Speeds.arrive`);
+    # 0: at the push's speed.
+    arrive: float = 0.0
+    arrive_m: float = 0.1
 
     def __post_init__(self) -> None:
         from lerobot_gcs_push.box_gcs import check_method
@@ -140,6 +147,9 @@ class ExpertConfig(Shared):
             raise ValueError(f"unknown commands {self.commands!r}: choose one of {COMMANDS}")
         if self.lead_actions is not None and self.lead_actions < 1:
             raise ValueError(f"lead_actions must be >= 1, got {self.lead_actions}")
+        for name in ("arrive", "arrive_m"):
+            if not getattr(self, name) >= 0:  # also refuses NaN
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
 
     def lead(self) -> int:
         """`lead_actions`, or its default for the commands. Resolved here, never stored: draccus builds a nested

@@ -54,12 +54,18 @@ class Speeds:
     # Bound on the finger's acceleration along its path (m/s^2; `planning.timing`): every plan starts and
     # ends at rest and slows for its corners. 0: none, the speed jumps at every knot.
     accel: float = 0.0
+    # The last `arrive_m` of a plan's last push at `arrive` at most (m/s; 0: the push's speed). gym-pusht's T
+    # stops when the push does, so a push that arrives fast leaves a policy one frame to stop in: the position
+    # pool's T crossed the goal's band (about 2 px each way) at 3.3 px a frame, median, and the benchmark's
+    # policies ended short of it or past it (experiments/pusht/README.md, "The T's arrival").
+    arrive: float = 0.0
+    arrive_m: float = 0.0
 
     def of(self, kind: SegmentKind) -> float:
         return getattr(self, kind)
 
     def __post_init__(self) -> None:
-        may_be_nil = ("push_dwell_s", "push_lead", "push_lead_ramp_m", "push_lateral_gain", "accel")
+        may_be_nil = ("push_dwell_s", "push_lead", "push_lead_ramp_m", "push_lateral_gain", "accel", "arrive", "arrive_m")
         for k, v in asdict(self).items():
             if not (v >= 0 if k in may_be_nil else v > 0):
                 raise ValueError(f"Speeds.{k} must be positive, got {v}")
@@ -186,6 +192,7 @@ class Plan:
                 ks.append(DWELL)
                 vmax.append(speeds.push)
                 hold.append(speeds.push_dwell_s)
+        _slow_arrival(fp, sp, ks, vmax, hold, speeds)
         fp = np.array(fp)
         return fp, np.array(sp), ks, Timing(fp, np.array(vmax), np.array(hold), speeds.accel)
 
@@ -265,6 +272,26 @@ class Plan:
             "candidates": self.candidates,
             **self.extra,
         }
+
+
+def _slow_arrival(fp: list, sp: list, ks: list, vmax: list, hold: list, speeds: Speeds) -> None:
+    """In place: the knots' last push split `speeds.arrive_m` before its end, the piece after at
+    `speeds.arrive` at most (the whole push where it is shorter); the slider's pose at the new knot on the
+    line between its two, as the schedule interpolates it."""
+    if speeds.arrive <= 0 or speeds.arrive_m <= 0 or PUSH not in ks:
+        return
+    i = len(ks) - 1 - ks[::-1].index(PUSH)  # segment i runs from knot i to knot i + 1
+    a, b = np.asarray(fp[i], float), np.asarray(fp[i + 1], float)
+    length = float(np.linalg.norm(b - a))
+    if length <= speeds.arrive_m:
+        vmax[i] = min(vmax[i], speeds.arrive)
+        return
+    w = 1.0 - speeds.arrive_m / length
+    fp.insert(i + 1, a + w * (b - a))
+    sp.insert(i + 1, (1 - w) * np.asarray(sp[i], float) + w * np.asarray(sp[i + 1], float))
+    ks.insert(i + 1, PUSH)
+    vmax.insert(i + 1, min(vmax[i], speeds.arrive))
+    hold.insert(i + 1, 0.0)
 
 
 def _push_runs(kinds) -> list[tuple[int, int]]:
