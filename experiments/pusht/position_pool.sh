@@ -8,7 +8,8 @@
 #             (`--command_noise_px`): demos/<pool>_dartS/
 #   FINISH=C  the demonstration goes on past gym-pusht's success until coverage C, or FINISH_FRAMES (60) steps
 #             after it (`--finish_coverage`, `--finish_frames`): demos/<pool>_finishCC/
-#   LEAD, NOISE and FINISH write keypoint datasets (no rendering: a list rebuilds either kind). WORKERS=1 leaves a core;
+#   ARRIVE=V  the last 0.1 m of each plan's last push at V m/s at most (`--expert.arrive`): demos/<pool>_arriveVV/
+#   LEAD, NOISE, FINISH and ARRIVE write keypoint datasets (no rendering: a list rebuilds either kind). WORKERS=1 leaves a core;
 #   EPISODES=N demonstrations a seed (250).
 set -eu
 cd "$(dirname "$0")/../.."
@@ -19,6 +20,7 @@ if [ -n "${NOISE:-}" ]; then name=${name}_dart$NOISE extra+=(--command_noise_px=
 if [ -n "${FINISH:-}" ]; then
   name=${name}_finish${FINISH#0.} extra+=(--finish_coverage="$FINISH" --finish_frames="${FINISH_FRAMES:-60}")
 fi
+if [ -n "${ARRIVE:-}" ]; then name=${name}_arrive${ARRIVE#0.} extra+=(--expert.arrive="$ARRIVE"); fi
 if [ ${#extra[@]} -gt 0 ]; then extra+=(--obs_type=environment_state_agent_pos); fi
 mkdir -p "experiments/pusht/demos/$name"
 for seed in "${@:-4800 4801 4802 4803}"; do
