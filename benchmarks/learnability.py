@@ -33,7 +33,8 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 DEMOS = REPO / "experiments" / "pusht" / "demos"
-POSITION = [DEMOS / "position" / f"seed{s}.json" for s in (4800, 4801, 4802, 4803)]
+SEEDS = (4800, 4801, 4802, 4803)  # every pool's starts: gym-pusht's resets of these seeds, 250 each
+POSITION = [DEMOS / "position" / f"seed{s}.json" for s in SEEDS]
 
 
 @dataclass(frozen=True)
@@ -73,6 +74,9 @@ POOLS = {
     # The expert leading by 4 actions, each demonstration going on past gym-pusht's success until the T covers
     # 0.98 of the goal, or 60 frames after it (`generate --finish_coverage`): the judges' near misses.
     "lead4_finish98": Pool([DEMOS / "lead4_finish98" / f"seed{s}.json" for s in (4800, 4801, 4802, 4803)]),
+    # The expert's last push arriving at 0.15 m/s over its last 0.1 m (`--expert.arrive`), read as shift 1
+    # reads the position pool: one change against position_shift1, the T's arrival speed.
+    "arrive_shift1": Pool([DEMOS / "position_arrive15" / f"seed{s}.json" for s in SEEDS], label_shift=1),
     # Aggregated as DAgger does: the position pool and takeover round 1's 350 demonstrations from the v2
     # position policy's stall states (`experiments/pusht/takeover/round.sh`).
     "position_takeover1": Pool([*POSITION, DEMOS / "takeover" / "r1.json"], episodes=1350),
