@@ -92,6 +92,8 @@ def test_the_expert_is_reachable_and_checked_from_generate():
         parse("generate", ["--env_id=GcsPushT-v0", "--method=micp"])
     with pytest.raises(ValueError, match="gym-pusht"):
         parse("generate", ["--expert.commands=steer"])  # the box's expert has no pixel commands
+    with pytest.raises(ValueError, match="arrive must be >= 0"):
+        parse("generate", ["--expert.arrive=-0.1"])
 
 
 def test_records_keep_their_flat_names_and_gain_only_what_is_set():
@@ -107,6 +109,8 @@ def test_records_keep_their_flat_names_and_gain_only_what_is_set():
     pusht = ["--seed=5", "--expert=closed-loop", "--env_id=gym_pusht/PushT-v0"]
     finished = recorded_settings(parse("generate", [*pusht, "--finish_coverage=0.98"]))
     assert finished == recorded_settings(parse("generate", pusht)) | {"finish_coverage": 0.98, "finish_frames": 20}
+    arriving = recorded_settings(parse("generate", [*pusht, "--expert.arrive=0.15"]))
+    assert arriving == recorded_settings(parse("generate", pusht)) | {"arrive": 0.15}
 
 
 def test_a_resume_compares_the_expert_settings(tmp_path):

@@ -98,3 +98,14 @@ def test_the_last_push_arrives_at_the_arrival_speed_over_its_last_stretch():
     np.testing.assert_allclose(steps[first_push], 0.1, atol=1e-9)  # the earlier push cruises at 1 m/s
     short = Plan("hand", 0.0, None, 0.0, [], np.zeros((2, 2)), fp[:2] * 0.05, [PUSH], np.zeros(2))
     assert short.duration(slow) == pytest.approx(0.05 / 0.2 + 0.2 / 4)  # shorter than 0.1 m: all of it at 0.2
+
+
+def test_the_experts_arrival_reaches_the_speeds_its_plans_run_at():
+    from lerobot_gcs_push.planning.factory import ExpertConfig, make_expert
+    from lerobot_gcs_push.registration import make_env
+
+    env = make_env("gym_pusht/PushT-v0")
+    arriving = make_expert(env.scene, env.fps, ExpertConfig(mode="closed-loop", arrive=0.15), planner=object())
+    plain = make_expert(env.scene, env.fps, ExpertConfig(mode="closed-loop"), planner=object())
+    assert (arriving.expert.speeds.arrive, arriving.expert.speeds.arrive_m) == (0.15, 0.1)
+    assert plain.expert.speeds.arrive == 0.0 and arriving.expert.speeds.push == plain.expert.speeds.push
