@@ -53,7 +53,7 @@ class Pool:
 
 POOLS = {
     # The expert steered over one action (inverting gym-pusht's PD), 2026-12-05: base 1000's pool.
-    "steer1": Pool([DEMOS / f"seed{s}.json" for s in (4800, 4801, 4802, 4803)]),
+    "steer1": Pool([DEMOS / f"seed{s}.json" for s in SEEDS]),
     # Position commands (`ExpertConfig.commands="position"`, lead 3 actions), 2026-12-07.
     "position": Pool(POSITION),
     # The same states, each frame labelled with the command 1 or 2 frames later: a proxy for leads 4 and 5
@@ -70,10 +70,10 @@ POOLS = {
     # the small model's precision (the model, not the data or the schedule).
     "position_shift1_unet128": Pool(POSITION, label_shift=1, down_dims=(128, 256, 512)),
     # The expert leading by 4 actions, with DART's 4 px of command noise (labels clean), 2026-12-07.
-    "lead4_dart4": Pool([DEMOS / "lead4_dart4" / f"seed{s}.json" for s in (4800, 4801, 4802, 4803)]),
+    "lead4_dart4": Pool([DEMOS / "lead4_dart4" / f"seed{s}.json" for s in SEEDS]),
     # The expert leading by 4 actions, each demonstration going on past gym-pusht's success until the T covers
     # 0.98 of the goal, or 60 frames after it (`generate --finish_coverage`): the judges' near misses.
-    "lead4_finish98": Pool([DEMOS / "lead4_finish98" / f"seed{s}.json" for s in (4800, 4801, 4802, 4803)]),
+    "lead4_finish98": Pool([DEMOS / "lead4_finish98" / f"seed{s}.json" for s in SEEDS]),
     # The expert's last push arriving at 0.15 m/s over its last 0.1 m (`--expert.arrive`), read as shift 1
     # reads the position pool: one change against position_shift1, the T's arrival speed.
     "arrive_shift1": Pool([DEMOS / "position_arrive15" / f"seed{s}.json" for s in SEEDS], label_shift=1),
@@ -195,7 +195,7 @@ def main(argv=None) -> int:
     ap.add_argument("--validation_seed", type=int, default=None,
                     help="judge the pool's finished policy on this seed instead (validation<seed>.json)")  # fmt: skip
     ap.add_argument("--threads", type=int, default=1,
-                    help="torch threads for training (the records before 2026-12-07 18:00 used 1)")  # fmt: skip
+                    help="torch threads for training (a record without `threads` used 1)")  # fmt: skip
     args = ap.parse_args(argv)
     if args.validation_seed is not None:
         print(json.dumps(validate(args.pool, args.validation_seed), indent=1))

@@ -65,8 +65,8 @@ class Speeds:
         return getattr(self, kind)
 
     def __post_init__(self) -> None:
-        may_be_nil = {"push_dwell_s", "push_lead", "push_lead_ramp_m", "push_lateral_gain", "accel", "arrive"}
-        may_be_nil.add("arrive_m")
+        may_be_nil = {"push_dwell_s", "push_lead", "push_lead_ramp_m", "push_lateral_gain"}
+        may_be_nil |= {"accel", "arrive", "arrive_m"}  # 0: no bound, no slow arrival
         for k, v in asdict(self).items():
             if not (v >= 0 if k in may_be_nil else v > 0):
                 raise ValueError(f"Speeds.{k} must be positive, got {v}")
